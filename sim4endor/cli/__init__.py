@@ -1,0 +1,54 @@
+"""The ``sim4endor`` command line.
+
+Each subcommand lives in its own module of this package and exposes
+``register(subparsers)``, which adds its parser and sets ``func`` to a handler taking the
+parsed arguments and returning an exit status.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from collections.abc import Sequence
+
+from sim4endor.errors import Sim4EndoRError
+
+# Subcommand modules, imported lazily so `sim4endor --help` stays fast.
+_SUBCOMMAND_MODULES: tuple[str, ...] = ("vessel",)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Returns the top-level parser with every subcommand registered."""
+    parser = argparse.ArgumentParser(
+        prog="sim4endor",
+        description="Guidewire navigation simulator for robot-assisted PCI (MuJoCo + RL).",
+    )
+    parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in _SUBCOMMAND_MODULES:
+        importlib.import_module(f"sim4endor.cli.{name}").register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Runs the command line; returns the process exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.INFO,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        return int(args.func(args) or 0)
+    except Sim4EndoRError as exc:
+        print(f"sim4endor {args.command}: error: {exc}", file=sys.stderr)  # noqa: T201
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)  # noqa: T201
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,97 @@
+"""CenterlineGraph: validation, geodesic distances, projection and JSON round trip."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim4endor.vessels.centerline import CenterlineError, CenterlineGraph
+
+
+def y_graph(spacing: float = 1e-3) -> CenterlineGraph:
+    """Trunk along +x to (30 mm, 0), branch A up-right and branch B down-right, 20 mm each."""
+    trunk = [np.array([x, 0.0, 0.0]) for x in np.arange(0, 0.030 + 1e-9, spacing)]
+    nodes = list(trunk)
+    edges = [(i, i + 1) for i in range(len(trunk) - 1)]
+    junction = len(trunk) - 1
+    ends = {}
+    for name, sign in (("A", 1.0), ("B", -1.0)):
+        direction = np.array([np.cos(np.pi / 4), sign * np.sin(np.pi / 4), 0.0])
+        prev = junction
+        for k in range(1, 21):
+            nodes.append(trunk[-1] + k * spacing * direction)
+            edges.append((prev, len(nodes) - 1))
+            prev = len(nodes) - 1
+        ends[name] = prev
+    return CenterlineGraph(
+        nodes=np.array(nodes), radii=np.full(len(nodes), 1.5e-3), edges=np.array(edges),
+        labels={"inlet": 0, **ends},
+    )
+
+
+def test_lengths_and_topology() -> None:
+    g = y_graph()
+    assert g.total_length() == pytest.approx(0.070, rel=1e-9)
+    assert set(g.terminal_nodes()) == {0, g.labels["A"], g.labels["B"]}
+    assert g.num_components() == 1
+
+
+def test_geodesic_is_longer_than_euclidean_in_the_wrong_branch() -> None:
+    g = y_graph()
+    to_a = g.geodesic_from(g.labels["A"])
+    wrong = g.nodes[g.labels["B"]] - np.array([0.0, 0.0, 0.0])  # end of branch B
+    geodesic = g.distance_along(wrong, to_a)
+    euclid = float(np.linalg.norm(wrong - g.nodes[g.labels["A"]]))
+    assert geodesic == pytest.approx(0.040, rel=1e-9)  # down B to the junction, up A
+    assert euclid == pytest.approx(0.020 * np.sqrt(2), rel=1e-9)
+    assert geodesic > 1.4 * euclid
+
+
+def test_distance_along_interpolates_within_an_edge() -> None:
+    g = y_graph()
+    to_inlet = g.geodesic_from(0)
+    assert g.distance_along([0.0105, 0.0003, 0.0], to_inlet) == pytest.approx(0.0105)
+
+
+def test_projection_reports_offset() -> None:
+    proj = y_graph().project([0.010, 0.001, 0.0])
+    assert proj.distance == pytest.approx(0.001)
+    np.testing.assert_allclose(proj.point, [0.010, 0.0, 0.0], atol=1e-12)
+
+
+def test_curvature_weighting_penalises_bends() -> None:
+    g = y_graph()
+    plain = g.geodesic_from(0)[g.labels["A"]]
+    weighted = g.geodesic_from(0, curvature_weight=5.0)[g.labels["A"]]
+    assert weighted > plain
+    with pytest.raises(ValueError, match="curvature_weight"):
+        g.edge_weights(-1.0)
+
+
+def test_json_round_trip(tmp_path) -> None:
+    g = y_graph()
+    g.save(tmp_path / "centerline.json")
+    back = CenterlineGraph.load(tmp_path / "centerline.json")
+    np.testing.assert_allclose(back.nodes, g.nodes, atol=1e-9)
+    assert back.labels == g.labels
+    np.testing.assert_array_equal(back.edges, g.edges)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"radii": np.zeros(3)}, "positive"),
+        ({"edges": np.array([[0, 5]])}, "existing nodes"),
+        ({"labels": {"A": 9}}, "missing node"),
+        ({"radii": np.ones(2)}, "one entry per node"),
+    ],
+)
+def test_malformed_graphs_are_rejected(kwargs, message) -> None:
+    base = {"nodes": np.eye(3), "radii": np.ones(3), "edges": np.array([[0, 1], [1, 2]])}
+    with pytest.raises(CenterlineError, match=message):
+        CenterlineGraph(**{**base, **kwargs})
+
+
+def test_missing_file_names_the_path(tmp_path) -> None:
+    with pytest.raises(CenterlineError, match="No centerline file"):
+        CenterlineGraph.load(tmp_path / "nope.json")
