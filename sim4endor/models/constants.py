@@ -1,0 +1,50 @@
+"""Every MJCF name the guidewire scene code addresses (MuJoCo Playground style).
+
+The scene builder creates elements under these names and :mod:`sim4endor.physics` looks them
+up by name, so nothing in the library relies on element indices.
+"""
+
+from __future__ import annotations
+
+#: Prefix of every element of the wire (bodies, joints, geoms, the tip site, the plugin).
+WIRE_PREFIX = "guidewire/"
+#: Name of the wire's elasticity plugin instance.
+WIRE_PLUGIN = WIRE_PREFIX + "cable"
+#: Site at the distal end of the wire.
+WIRE_TIP_SITE = WIRE_PREFIX + "tip"
+#: Default class of the wire's contact capsules (mjcf/guidewire_defaults.xml).
+WIRE_CLASS = "guidewire"
+#: Default class of the wire's hidden core capsules that carry the bending stiffness.
+WIRE_CORE_CLASS = "guidewire_core"
+
+#: The robot carriage body and its two joints / position actuators.
+CARRIAGE_BODY = "driver/carriage"
+INSERTION_JOINT = "driver/insertion"
+ROTATION_JOINT = "driver/rotation"
+INSERTION_ACTUATOR = "driver/insertion"
+ROTATION_ACTUATOR = "driver/rotation"
+#: Custom numerics holding the driver's speed limits (m/s and rad/s).
+MAX_INSERTION_SPEED = "driver/max_insertion_speed"
+MAX_ROTATION_SPEED = "driver/max_rotation_speed"
+
+#: Static body holding the introducer sheath's convex wall pieces.
+SHEATH_BODY = "sheath"
+SHEATH_CLASS = "sheath"
+
+#: Prefix given to every element of the attached vessel MJCF.
+VESSEL_PREFIX = "vessel/"
+
+
+def wire_body(index: int) -> str:
+    """Returns the name of the wire's ``index``-th body (0 = proximal, welded to the driver)."""
+    return f"{WIRE_PREFIX}body_{index:03d}"
+
+
+def wire_joint(index: int) -> str:
+    """Returns the name of the ball joint at the proximal end of wire body ``index`` (>= 1)."""
+    return f"{WIRE_PREFIX}joint_{index:03d}"
+
+
+def wire_geom(index: int) -> str:
+    """Returns the name of the contact capsule of wire body ``index``."""
+    return f"{WIRE_PREFIX}geom_{index:03d}"

@@ -1,0 +1,285 @@
+"""The guidewire: a discrete Cosserat rod (MuJoCo 3.17 ``mujoco.elasticity.cable`` plugin).
+
+This is the only module that knows about the cable plugin. Its narrow interface is
+:class:`GuidewireConfig` (physical parameters in SI units) and :func:`add_guidewire`, which
+adds the wire to a body of an :class:`mujoco.MjSpec`; the rest of the package addresses the
+wire through the names in :mod:`sim4endor.models.constants`. A later MuJoCo-4 1D-flexcomp rod
+replaces this module only.
+
+How the rod is built (and why):
+
+* A chain of rigid capsule bodies joined by ball joints; the plugin adds bending and twisting
+  torques ``E·I/l`` and ``G·J/l`` at every joint. The wire lies along the parent body's +x axis;
+  its pre-bent distal tip curves towards the parent's +y axis (rotation 0 of the driver).
+* Segments are non-uniform: ``tip_segments`` short segments along the pre-bent tip, then
+  lengths grow geometrically (``segment_growth``) up to ``max_segment_length`` along the shaft.
+  Per-step cost grows about with the cube of the segment count (dense chain mass matrix), so
+  a coarse shaft is what makes the wire fast.
+* The plugin derives each joint's stiffness from the radius of the FIRST geom of the joint's
+  body and from the distance to the previous body. Each body therefore carries a hidden,
+  massless, non-colliding *core* capsule whose radius encodes the stiffness we want at that
+  joint: ``E·I`` of the core, times the tip softening factor, times ``l_prev / l_voronoi``
+  so that the joint represents the rod length around its vertex (the usual discrete-rod
+  Voronoi length). This makes non-uniform segments and a softer tip exact, and brings the
+  cantilever error from O(1/N) to O(1/N²). The second geom is the contact capsule with the
+  wire's outer radius.
+* The first body is welded to the parent (the driver's clamp); ``flat="false"`` makes the
+  built (pre-bent) shape the rest shape.
+* Quasi-static mass scaling: the wire's inertia is negligible next to its elastic and contact
+  forces, and MuJoCo's soft contacts work in acceleration space, so a real 0.1 g wire tunnels
+  through the wall at usable time steps. ``mass_scale`` multiplies the density (and gravity
+  stays off in ``mjcf/options.xml``). Static results (cantilever deflection, torque transfer)
+  do not depend on mass; the validation benchmark measures them with and without scaling.
+  Ball-joint damping and armature are needed because the plugin's forces are explicit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.models import constants as names
+
+_CABLE_PLUGIN = "mujoco.elasticity.cable"
+INCH = 0.0254
+
+
+class GuidewireConfigError(Sim4EndoRError, ValueError):
+    """Raised for physically impossible wire parameters; the message names the field."""
+
+
+@dataclass(frozen=True)
+class GuidewireConfig:
+    """Physical parameters of the guidewire (SI units).
+
+    Attributes:
+        length: Modelled wire length (m): only the part that can be inside the sheath and
+            vessel is simulated (the driver's carriage clamps its proximal end).
+        outer_diameter: Outer diameter (m); default 0.014 in = 0.356 mm.
+        core_diameter: Diameter of the load-bearing core (m) used for the bending/twisting
+            stiffness; ``None`` uses ``outer_diameter`` (the modulus is then an effective one).
+        youngs_modulus: Young's modulus of the core (Pa); nitinol ~60 GPa.
+        shear_modulus: Shear modulus of the core (Pa); nitinol ~23 GPa (ν = 0.3).
+        tip_length: Arc length of the pre-bent distal tip (m).
+        tip_angle: Total pre-bend angle of the tip (rad); 35° over 5 mm gives a 1.48 mm
+            lateral offset, which fits a 2 mm-radius lumen.
+        tip_stiffness_factor: Bending/twisting stiffness of the tip relative to the shaft.
+        friction: Sliding friction coefficient of wire contacts (the wire's geoms have
+            priority, so this value is used against walls and sheath).
+        density: Physical density of the wire (kg/m³); nitinol ~6450.
+        mass_scale: Quasi-static mass-scaling factor applied to ``density`` (see module doc).
+        tip_segments: Number of (equal) segments along the pre-bent tip.
+        max_segment_length: Longest shaft segment (m).
+        segment_growth: Ratio between consecutive segment lengths from tip to shaft (>= 1).
+        joint_damping: Damping of every ball joint (N·m·s/rad).
+        joint_armature: Armature of every ball joint (kg·m²).
+    """
+
+    length: float = 0.15
+    outer_diameter: float = 0.014 * INCH
+    core_diameter: float | None = None
+    youngs_modulus: float = 60e9
+    shear_modulus: float = 60e9 / 2.6
+    tip_length: float = 0.005
+    tip_angle: float = math.radians(35.0)
+    tip_stiffness_factor: float = 0.5
+    friction: float = 0.1
+    density: float = 6450.0
+    mass_scale: float = 1e4
+    tip_segments: int = 5
+    max_segment_length: float = 0.005
+    segment_growth: float = 1.5
+    joint_damping: float = 1.25e-3
+    joint_armature: float = 2.5e-6
+
+    def __post_init__(self) -> None:
+        positive = (
+            "length", "outer_diameter", "youngs_modulus", "shear_modulus", "tip_length",
+            "tip_stiffness_factor", "density", "mass_scale", "max_segment_length",
+        )
+        for field_name in positive:
+            value = getattr(self, field_name)
+            if not (math.isfinite(value) and value > 0):
+                raise GuidewireConfigError(
+                    f"GuidewireConfig.{field_name} must be > 0, got {value}."
+                )
+        if self.core_diameter is not None and not 0 < self.core_diameter <= self.outer_diameter:
+            raise GuidewireConfigError(
+                f"GuidewireConfig.core_diameter must be in (0, outer_diameter="
+                f"{self.outer_diameter}], got {self.core_diameter}."
+            )
+        if self.tip_length >= self.length:
+            raise GuidewireConfigError(
+                f"GuidewireConfig.tip_length ({self.tip_length} m) must be shorter than "
+                f"length ({self.length} m)."
+            )
+        if not 0 <= self.tip_angle < math.pi:
+            raise GuidewireConfigError(
+                f"GuidewireConfig.tip_angle must be in [0, pi) rad, got {self.tip_angle}."
+            )
+        if self.tip_segments < 1 or self.segment_growth < 1:
+            raise GuidewireConfigError(
+                "GuidewireConfig.tip_segments must be >= 1 and segment_growth >= 1, got "
+                f"{self.tip_segments} and {self.segment_growth}."
+            )
+        if self.friction < 0 or self.joint_damping < 0 or self.joint_armature < 0:
+            raise GuidewireConfigError(
+                "GuidewireConfig.friction, joint_damping and joint_armature must be >= 0."
+            )
+
+    @property
+    def radius(self) -> float:
+        """Outer radius (m)."""
+        return 0.5 * self.outer_diameter
+
+    @property
+    def bending_stiffness(self) -> float:
+        """Shaft flexural rigidity E·I (N·m²)."""
+        core = self.outer_diameter if self.core_diameter is None else self.core_diameter
+        return self.youngs_modulus * math.pi * core**4 / 64.0
+
+    @property
+    def tip_lateral_offset(self) -> float:
+        """Sideways offset of the tip end from the shaft axis caused by the pre-bend (m)."""
+        return float(abs(wire_vertices(self)[-1, 1]))
+
+    @property
+    def num_segments(self) -> int:
+        """Number of rigid segments (bodies) of the discretised wire."""
+        return len(segment_lengths(self))
+
+
+#: Nitinol core (the default).
+NITINOL = GuidewireConfig()
+#: Stainless-steel core: E = 200 GPa, G = 77 GPa, ρ = 7900 kg/m³.
+STAINLESS_STEEL = GuidewireConfig(youngs_modulus=200e9, shear_modulus=77e9, density=7900.0)
+
+
+def segment_lengths(config: GuidewireConfig) -> NDArray[np.float64]:
+    """Returns the segment lengths (m), proximal first.
+
+    The tip has ``tip_segments`` equal segments; going proximally, each shaft segment is
+    ``segment_growth`` times the previous one until ``max_segment_length``; the remaining
+    shaft is split into equal segments no longer than that.
+    """
+    tip = config.tip_length / config.tip_segments
+    remaining = config.length - config.tip_length
+    graded: list[float] = []
+    step = tip * config.segment_growth
+    while step < config.max_segment_length and step < remaining - sum(graded):
+        graded.append(step)
+        step *= config.segment_growth
+    rest = remaining - sum(graded)
+    count = max(1, math.ceil(rest / config.max_segment_length - 1e-9))
+    shaft = [rest / count] * count + graded[::-1]
+    return np.array(shaft + [tip] * config.tip_segments)
+
+
+def wire_vertices(config: GuidewireConfig) -> NDArray[np.float64]:
+    """Returns the (N+1, 3) rest-shape vertices in the mount frame (wire along +x, tip to +y)."""
+    lengths = segment_lengths(config)
+    headings = _segment_headings(config, len(lengths))
+    steps = lengths[:, None] * np.stack([np.cos(headings), np.sin(headings), 0 * headings], 1)
+    return np.vstack([np.zeros(3), np.cumsum(steps, axis=0)])
+
+
+def _segment_headings(config: GuidewireConfig, count: int) -> NDArray[np.float64]:
+    # Mid-segment headings of a discretised circular arc over the tip segments.
+    headings = np.zeros(count)
+    k = np.arange(config.tip_segments)
+    headings[count - config.tip_segments :] = (k + 0.5) * config.tip_angle / config.tip_segments
+    return headings
+
+
+def _stiffness_factors(
+    config: GuidewireConfig, lengths: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Per-body factor on E·I and G·J that the core capsule radius encodes (see module doc)."""
+    count = len(lengths)
+    factors = np.ones(count)
+    arc = np.concatenate([[0.0], np.cumsum(lengths)])
+    tip_start = config.length - config.tip_length
+    for b in range(1, count):
+        # Joint b sits at vertex b, between segments b-1 and b. The first joint is at the
+        # clamp, so it represents only half of the following segment.
+        voronoi = 0.5 * lengths[b] if b == 1 else 0.5 * (lengths[b - 1] + lengths[b])
+        softening = config.tip_stiffness_factor if arc[b] > tip_start + 1e-12 else 1.0
+        factors[b] = softening * lengths[b - 1] / voronoi
+    return factors
+
+
+def add_guidewire(spec: mujoco.MjSpec, parent: mujoco.MjsBody, config: GuidewireConfig) -> None:
+    """Adds the wire to ``parent`` of ``spec`` (its proximal end welded at the parent origin).
+
+    ``spec`` must hold the default classes of ``mjcf/guidewire_defaults.xml``
+    (:func:`sim4endor.models.scene.base_spec` provides them).
+
+    Args:
+        spec: The model spec to extend; the cable plugin is activated in it.
+        parent: Body that clamps the wire (the driver's carriage).
+        config: Wire parameters.
+
+    Raises:
+        GuidewireConfigError: If the spec lacks the guidewire default classes.
+    """
+    for cls in (names.WIRE_CLASS, names.WIRE_CORE_CLASS):
+        if spec.find_default(cls) is None:
+            raise GuidewireConfigError(
+                f"The model spec has no default class {cls!r}; build it from "
+                "sim4endor.models.scene.base_spec(), which includes mjcf/guidewire_defaults.xml."
+            )
+    lengths = segment_lengths(config)
+    headings = _segment_headings(config, len(lengths))
+    factors = _stiffness_factors(config, lengths)
+    core_radius = 0.5 * (config.core_diameter or config.outer_diameter)
+
+    spec.activate_plugin(_CABLE_PLUGIN)
+    plugin = spec.add_plugin(name=names.WIRE_PLUGIN, plugin_name=_CABLE_PLUGIN, active=True)
+    plugin.config = {
+        "bend": repr(config.youngs_modulus),
+        "twist": repr(config.shear_modulus),
+        "flat": "false",
+    }
+    core_default = spec.find_default(names.WIRE_CORE_CLASS)
+    wire_default = spec.find_default(names.WIRE_CLASS)
+    body = parent
+    previous_heading, previous_length = 0.0, 0.0
+    for index, (length, heading) in enumerate(zip(lengths, headings, strict=True)):
+        turn = heading - previous_heading
+        body = body.add_body(
+            name=names.wire_body(index),
+            pos=[previous_length, 0.0, 0.0],
+            quat=[math.cos(turn / 2), 0.0, 0.0, math.sin(turn / 2)],
+        )
+        if index > 0:
+            body.add_joint(
+                name=names.wire_joint(index),
+                type=mujoco.mjtJoint.mjJNT_BALL,
+                damping=config.joint_damping,
+                armature=config.joint_armature,
+            )
+        body.add_geom(
+            core_default,
+            type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+            fromto=[0.0, 0.0, 0.0, length, 0.0, 0.0],
+            size=[core_radius * factors[index] ** 0.25, 0.0, 0.0],
+        )
+        body.add_geom(
+            wire_default,
+            name=names.wire_geom(index),
+            type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+            fromto=[0.0, 0.0, 0.0, length, 0.0, 0.0],
+            size=[config.radius, 0.0, 0.0],
+            density=config.density * config.mass_scale,
+            friction=[config.friction, 0.005, 0.0001],
+        )
+        body.plugin.plugin_name = _CABLE_PLUGIN
+        body.plugin.name = names.WIRE_PLUGIN
+        body.plugin.active = True
+        previous_heading, previous_length = heading, length
+    body.add_site(name=names.WIRE_TIP_SITE, pos=[previous_length, 0.0, 0.0])

@@ -1,0 +1,143 @@
+"""Scene composition with MjSpec: options + vessel + driver + sheath + guidewire.
+
+The insertion axis starts at the vessel's manifest inlet and points along the inlet direction.
+At rotation 0 the wire's pre-bent tip points towards the component of world +y orthogonal to
+that axis (world +z when the axis is parallel to y), so the tip of the shipped phantoms, which
+lie in the x–y plane, bends in their plane.
+
+A compiled model is cached per (vessel folder, wire config, driver config, timestep):
+compiling costs tens of milliseconds, resetting microseconds, so environments should compile
+once per anatomy and reset only the state. :func:`build_model` returns a copy of the cached
+model, so callers may edit their copy.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from sim4endor import assets
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.models import constants as names
+from sim4endor.models.driver import DriverConfig, add_driver, add_sheath
+from sim4endor.models.guidewire import GuidewireConfig, add_guidewire
+from sim4endor.vessels import Vessel
+
+
+class SceneError(Sim4EndoRError, ValueError):
+    """Raised when a wire cannot be placed in a vessel; the message names the fix."""
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Everything besides the anatomy that defines a compiled scene.
+
+    Attributes:
+        wire: Guidewire parameters.
+        driver: Driver and sheath parameters.
+        timestep: Physics time step (s); ``None`` keeps ``mjcf/options.xml`` (5 ms).
+    """
+
+    wire: GuidewireConfig = field(default_factory=GuidewireConfig)
+    driver: DriverConfig = field(default_factory=DriverConfig)
+    timestep: float | None = None
+
+
+def base_spec() -> mujoco.MjSpec:
+    """Returns a spec holding only ``mjcf/options.xml`` (options, visual, default classes)."""
+    return mujoco.MjSpec.from_file(str(assets.mjcf_path("options.xml")))
+
+
+def insertion_frame(direction: np.ndarray) -> np.ndarray:
+    """Returns the quaternion (w, x, y, z) whose x axis is ``direction`` and y axis is 'up'.
+
+    'Up' is world +y made orthogonal to ``direction`` (world +z if they are parallel).
+    """
+    x = np.asarray(direction, dtype=np.float64)
+    x = x / np.linalg.norm(x)
+    up = np.array([0.0, 1.0, 0.0]) if abs(x[1]) < 0.99 else np.array([0.0, 0.0, 1.0])
+    y = up - x * np.dot(up, x)
+    y /= np.linalg.norm(y)
+    z = np.cross(x, y)
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.column_stack([x, y, z]).ravel())
+    return quat
+
+
+def _attach_vessel(spec: mujoco.MjSpec, vessel: Vessel) -> None:
+    child = mujoco.MjSpec.from_file(str(vessel.mjcf_path))
+    # Mesh files are relative to the vessel folder; make them absolute so the parent spec,
+    # which lives elsewhere, still finds them.
+    mesh_root = Path(child.modelfiledir) / (child.meshdir or "")
+    for mesh in child.meshes:
+        if mesh.file:
+            mesh.file = str((mesh_root / mesh.file).resolve())
+    child.meshdir = ""
+    spec.attach(child, prefix=names.VESSEL_PREFIX, frame=spec.worldbody.add_frame())
+
+
+def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujoco.MjSpec:
+    """Returns the uncompiled scene spec.
+
+    Args:
+        vessel: The anatomy; ``None`` gives the wire and driver alone with the inlet at the
+            origin pointing along +x (used by the cantilever validation).
+        config: Wire, driver and timestep; ``None`` uses the defaults.
+
+    Raises:
+        SceneError: If the pre-bent tip does not fit the lumen at the inlet.
+    """
+    config = config or SceneConfig()
+    wire, driver = config.wire, config.driver
+    driver.check_wire(wire.length, wire.radius, wire.tip_length)
+    spec = base_spec()
+    if config.timestep is not None:
+        spec.option.timestep = config.timestep
+    if vessel is None:
+        inlet, direction = np.zeros(3), np.array([1.0, 0.0, 0.0])
+    else:
+        inlet, direction = vessel.inlet_position, vessel.inlet_direction
+        room = vessel.manifest.inlet.radius - wire.radius
+        if wire.tip_lateral_offset >= room:
+            raise SceneError(
+                f"The wire's pre-bent tip is {wire.tip_lateral_offset * 1e3:.2f} mm wide but "
+                f"{vessel.name}'s inlet leaves {room * 1e3:.2f} mm (lumen radius minus wire "
+                "radius): the wire would start inside the wall. Use a smaller "
+                "GuidewireConfig.tip_angle or tip_length."
+            )
+        _attach_vessel(spec, vessel)
+    direction = direction / np.linalg.norm(direction)
+    quat = insertion_frame(direction)
+    back = driver.sheath_length(wire.length)
+    start = inlet - back * direction
+    add_sheath(spec, start - 0.002 * direction, quat, back + 0.002 + driver.sheath_overlap, driver)
+    carriage = add_driver(spec, start, quat, driver)
+    add_guidewire(spec, carriage, wire)
+    spec.stat.center = list(inlet + 0.5 * driver.max_insertion * direction)
+    spec.stat.extent = max(0.05, driver.max_insertion)
+    spec.stat.meansize = 0.002
+    return spec
+
+
+@functools.lru_cache(maxsize=8)
+def _compiled(vessel_root: str | None, config: SceneConfig) -> mujoco.MjModel:
+    from sim4endor import vessels  # the vessel folder is re-read once per cache entry
+
+    vessel = None if vessel_root is None else vessels.load(Path(vessel_root))
+    try:
+        return build_spec(vessel, config).compile()
+    except ValueError as exc:
+        where = vessel_root or "the wire-only scene"
+        raise SceneError(f"MuJoCo could not compile {where}: {exc}") from None
+
+
+def build_model(vessel: Vessel | None, config: SceneConfig | None = None) -> mujoco.MjModel:
+    """Returns the compiled scene, compiled once per (vessel folder, config) and copied."""
+    root = None if vessel is None else str(vessel.root)
+    return copy.copy(_compiled(root, config or SceneConfig()))
+

@@ -1,0 +1,185 @@
+"""``GuidewirePhysics``: dm_control Physics of a guidewire scene with named SI accessors.
+
+Example:
+    >>> from sim4endor import vessels
+    >>> from sim4endor.physics import GuidewirePhysics
+    >>> physics = GuidewirePhysics.from_vessel(vessels.load("simplified_phantom"))  # doctest: +SKIP
+    >>> physics.apply_increments(0.001, 0.0, duration=0.05)   # 1 mm forward in one 50 ms step
+    >>> with physics.reset_context(): pass
+    >>> physics.tip_position(), physics.wall_contact_force()
+
+Every element is addressed by its name from :mod:`sim4endor.models.constants`.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+from dm_control import mujoco as dm_mujoco
+from dm_control.mujoco import wrapper
+from numpy.typing import NDArray
+
+from sim4endor.models import constants as names
+from sim4endor.models.scene import SceneConfig, build_model
+from sim4endor.vessels import Vessel
+
+FloatArray = NDArray[np.float64]
+
+
+def _scalar(value: object) -> float:
+    # Named indexing returns a 0-d or a (1,) array depending on the field.
+    return float(np.ravel(np.asarray(value))[0])
+
+
+class GuidewirePhysics(dm_mujoco.Physics):
+    """Physics of a wire on a robot driver, optionally inside a vessel.
+
+    ``legacy_step`` is off: :meth:`step` is a plain ``mj_step``, so after a step the contact
+    list and the constraint forces describe the same (start-of-step) state. dm_control's
+    ``control.Environment`` sets this attribute from its own ``legacy_step`` argument (default
+    True): pass ``legacy_step=False`` there. With legacy stepping the contact forces are
+    recomputed on demand (correct, but costs about one constraint solve per query).
+    """
+
+    legacy_step = False
+
+    @classmethod
+    def from_vessel(
+        cls, vessel: Vessel | None, config: SceneConfig | None = None
+    ) -> GuidewirePhysics:
+        """Builds (or reuses the cached compiled) scene for ``vessel`` and wraps it.
+
+        Args:
+            vessel: The anatomy, or ``None`` for the wire and driver alone.
+            config: Wire, driver and timestep; ``None`` uses the defaults.
+        """
+        return cls.from_model(wrapper.MjModel(build_model(vessel, config)))
+
+    # ------------------------------------------------------------------------ wire state
+    def _wire_body_ids(self) -> NDArray[np.int64]:
+        model = self.model.ptr
+        first = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.wire_body(0))
+        count = 0
+        while mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.wire_body(count)) >= 0:
+            count += 1
+        return np.arange(first, first + count)
+
+    def num_wire_segments(self) -> int:
+        """Number of rigid segments of the wire."""
+        return len(self._wire_body_ids())
+
+    def tip_position(self) -> FloatArray:
+        """World position of the wire's distal end (m), shape (3,)."""
+        return np.array(self.named.data.site_xpos[names.WIRE_TIP_SITE])
+
+    def tip_velocity(self) -> FloatArray:
+        """World linear velocity of the wire's distal end (m/s), shape (3,)."""
+        site = mujoco.mj_name2id(self.model.ptr, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE)
+        velocity = np.zeros(6)
+        mujoco.mj_objectVelocity(
+            self.model.ptr, self.data.ptr, mujoco.mjtObj.mjOBJ_SITE, site, velocity, 0
+        )
+        return velocity[3:].copy()
+
+    def wire_points(self) -> FloatArray:
+        """Wire centreline vertices, proximal first, tip last (m), shape (N+1, 3)."""
+        bodies = self._wire_body_ids()
+        return np.vstack([self.data.xpos[bodies], self.tip_position()[None]])
+
+    def insertion_depth(self) -> float:
+        """Carriage insertion (m) from its start; the tip has advanced about as much."""
+        return _scalar(self.named.data.qpos[names.INSERTION_JOINT])
+
+    def rotation_angle(self) -> float:
+        """Carriage rotation about the insertion axis (rad), 0 = tip bent 'up'."""
+        return _scalar(self.named.data.qpos[names.ROTATION_JOINT])
+
+    # ------------------------------------------------------------------------- contacts
+    def _wire_geom_mask(self) -> NDArray[np.bool_]:
+        model = self.model.ptr
+        bodies = self._wire_body_ids()
+        return np.isin(model.geom_bodyid, bodies) & (model.geom_contype > 0)
+
+    def _vessel_geom_mask(self) -> NDArray[np.bool_]:
+        model = self.model.ptr
+        sheath = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.SHEATH_BODY)
+        return (model.geom_contype & 2).astype(bool) & (model.geom_bodyid != sheath)
+
+    def wall_contact_forces(self) -> FloatArray:
+        """Normal force (N) of every wire–vessel-wall contact now active (sheath excluded)."""
+        data, model = self.data.ptr, self.model.ptr
+        if data.ncon == 0:
+            return np.zeros(0)
+        if self.legacy_step:
+            # mj_step2 + mj_step1 leave efc_force from the previous state's contacts.
+            mujoco.mj_fwdActuation(model, data)
+            mujoco.mj_fwdAcceleration(model, data)
+            mujoco.mj_fwdConstraint(model, data)
+        contacts = data.contact
+        wire, wall = self._wire_geom_mask(), self._vessel_geom_mask()
+        g1, g2 = contacts.geom1[: data.ncon], contacts.geom2[: data.ncon]
+        hits = np.flatnonzero((wire[g1] & wall[g2]) | (wire[g2] & wall[g1]))
+        hits = hits[contacts.efc_address[hits] >= 0]
+        forces = np.zeros(len(hits))
+        wrench = np.zeros(6)
+        for k, index in enumerate(hits):
+            mujoco.mj_contactForce(model, data, int(index), wrench)
+            forces[k] = wrench[0]
+        return forces
+
+    def wall_contact_force(self) -> float:
+        """Total normal force of all wire–vessel-wall contacts (N), the task's safety signal."""
+        return float(self.wall_contact_forces().sum())
+
+    # -------------------------------------------------------------------------- driving
+    def driver_targets(self) -> tuple[float, float]:
+        """Current servo targets (insertion m, rotation rad)."""
+        ctrl = self.named.data.ctrl
+        return _scalar(ctrl[names.INSERTION_ACTUATOR]), _scalar(ctrl[names.ROTATION_ACTUATOR])
+
+    def set_driver_targets(self, insertion: float, rotation: float) -> None:
+        """Sets the servo targets, clipped to the driver's ranges (m, rad)."""
+        model = self.named.model
+        targets = ((names.INSERTION_ACTUATOR, insertion), (names.ROTATION_ACTUATOR, rotation))
+        for name, value in targets:
+            if not np.isfinite(value):
+                raise ValueError(f"Driver target for {name} must be finite, got {value}.")
+            low, high = model.actuator_ctrlrange[name]
+            self.named.data.ctrl[name] = float(np.clip(value, low, high))
+
+    def max_speeds(self) -> tuple[float, float]:
+        """The driver's speed limits (m/s, rad/s)."""
+        numeric = self.named.model.numeric_data
+        return (
+            _scalar(numeric[names.MAX_INSERTION_SPEED]),
+            _scalar(numeric[names.MAX_ROTATION_SPEED]),
+        )
+
+    def apply_increments(
+        self, delta_insertion: float, delta_rotation: float, duration: float
+    ) -> tuple[float, float]:
+        """Moves the servo targets by [Δd (m), Δθ (rad)] for a control step of ``duration`` s.
+
+        Increments are clipped to the speed limits times ``duration``, and targets to the
+        ranges. Returns the increments actually applied.
+        """
+        v_ins, v_rot = self.max_speeds()
+        d_ins = float(np.clip(delta_insertion, -v_ins * duration, v_ins * duration))
+        d_rot = float(np.clip(delta_rotation, -v_rot * duration, v_rot * duration))
+        before = self.driver_targets()
+        self.set_driver_targets(before[0] + d_ins, before[1] + d_rot)
+        after = self.driver_targets()
+        return after[0] - before[0], after[1] - before[1]
+
+    # ------------------------------------------------------------------------- health
+    def warnings(self) -> dict[str, int]:
+        """MuJoCo warnings raised so far in this episode, by name (empty when healthy)."""
+        return {
+            mujoco.mjtWarning(i).name: int(w.number)
+            for i, w in enumerate(self.data.ptr.warning)
+            if w.number > 0
+        }
+
+    def is_finite(self) -> bool:
+        """Whether positions and velocities are all finite."""
+        return bool(np.all(np.isfinite(self.data.qpos)) and np.all(np.isfinite(self.data.qvel)))
