@@ -1,0 +1,210 @@
+"""dm_control-style suite of guidewire navigation tasks.
+
+Example:
+    >>> from sim4endor import suite
+    >>> env = suite.load("simplified_phantom", "task_a", {"random": 0})  # doctest: +SKIP
+    >>> timestep = env.reset()                                            # doctest: +SKIP
+    >>> timestep = env.step([1.0, 0.0])  # insert 1.5 mm, no rotation     # doctest: +SKIP
+
+The names come from :mod:`sim4endor.registry` (``ALL_TASKS``, ``BENCHMARKING``). Domains:
+``simplified_phantom`` and ``vascular_phantom`` (tasks ``task_a``, ``task_b``: reach target A
+or B), ``random_coronary`` (task ``navigate``: a seeded random tree and target per episode)
+and ``vessel`` (task ``navigate``: any built vessel folder,
+``task_kwargs={"vessel": NAME_OR_PATH, "target": LABEL}``).
+
+**Observation** (ordered dict; the paper's state is the default):
+
+=====================  =========  ======  =================================================
+entry                  shape      unit    meaning
+=====================  =========  ======  =================================================
+``tip_position``       (3,)       m       wire tip in the vessel frame (default)
+``tip_velocity``       (3,)       m/s     wire tip velocity (default)
+``target_position``    (3,)       m       opt-in: the target point
+``wire_shape``         (3·(N+1),) m       opt-in: wire centreline points, proximal first
+``last_action``        (2,)       --      opt-in: the previous (clipped) action
+``insertion``          (1,)       m       opt-in: measured insertion depth of the carriage
+``rotation``           (1,)       rad     opt-in: measured rotation of the carriage
+``manifold_distance``  (1,)       m       opt-in: geodesic tip-to-target distance
+``pixels``             (H, W, 1)  uint8   opt-in: fluoroscopy-like top-down projection
+=====================  =========  ======  =================================================
+
+Opt in with ``task_kwargs={"observations": ("target_position", ...)}``.
+
+**Action**: shape (2,), bounded [-1, 1]: ``[Δd / max_insertion_step, Δθ / max_rotation_step]``
+per control step; defaults 1.5 mm and 9° at 20 Hz (``control_timestep`` 0.05 s), i.e. at most
+30 mm/s and 180 °/s (:class:`sim4endor.tasks.ActionConfig`). Values outside [-1, 1] are
+clipped; NaN/inf raise :class:`sim4endor.tasks.InvalidActionError`.
+
+**Reward** (paper): ``R_dist = (D_last − D_current)/100`` with D in mm, ``+100`` when
+D <= 1 mm (success, terminal), ``−100`` on failure (terminal: wall force > 1 N, tip > 0.5 mm
+outside the lumen, insertion > 150 mm, |rotation| > 2 turns, instability). D is the manifold
+distance; ``task_kwargs={"reward": "euclidean"}`` gives the Euclidean baseline. Episodes are
+truncated after 20 s of simulated time (discount 1); terminal steps have discount 0. The
+terms of each step are in ``env.task.step_info()`` (the gymnasium ``info``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import dm_env
+from dm_control.mujoco.wrapper import MjModel
+from dm_control.rl import control
+
+from sim4endor import registry
+from sim4endor.physics import GuidewirePhysics
+from sim4endor.rewards import RewardConfig
+from sim4endor.tasks import (
+    DEFAULT_OBSERVATIONS,
+    ActionConfig,
+    Anatomy,
+    AnatomySource,
+    FixedAnatomy,
+    NavigationConfig,
+    NavigationTask,
+    PixelsConfig,
+    TaskConfigError,
+    TerminationConfig,
+    random_coronary,
+)
+from sim4endor.tasks.anatomy import compile_anatomy
+
+ALL_TASKS = registry.ALL_TASKS
+BENCHMARKING = registry.BENCHMARKING
+
+_LOG = logging.getLogger(__name__)
+
+#: task_kwargs understood by every task (besides the domain-specific ones below).
+_COMMON_KWARGS = (
+    "random", "reward", "curvature_weight", "observations", "action", "termination", "pixels",
+)
+_DOMAIN_KWARGS: Mapping[str, tuple[str, ...]] = {
+    "vessel": ("vessel", "target"),
+    "random_coronary": ("pool_size", "pool_seed", "cache_dir"),
+}
+
+
+class NavigationEnvironment(control.Environment):
+    """``control.Environment`` that turns a MuJoCo instability into a failed terminal step.
+
+    dm_control raises ``PhysicsError`` from inside ``step`` when MuJoCo warns (e.g. a
+    diverging solver); for RL that is a failure state of the MDP (paper: -100), not a crash.
+    """
+
+    def __init__(self, physics: GuidewirePhysics, task: NavigationTask, **kwargs: Any) -> None:
+        """Wraps ``control.Environment``; kwargs are passed on (time_limit, ...)."""
+        super().__init__(physics, task, **kwargs)
+        self._last_observation: Mapping[str, Any] | None = None
+
+    @property
+    def task(self) -> NavigationTask:
+        """The navigation task (typed)."""
+        return self._task
+
+    def reset(self) -> dm_env.TimeStep:
+        """Starts a new episode."""
+        timestep = super().reset()
+        self._last_observation = timestep.observation
+        return timestep
+
+    def step(self, action: Any) -> dm_env.TimeStep:
+        """Steps; an instability ends the episode with the failure reward."""
+        try:
+            timestep = super().step(action)
+        except control.PhysicsError as exc:
+            _LOG.warning("Simulation instability, ending the episode: %s", exc)
+            self.task.mark_unstable(self._physics)
+            self._reset_next_step = True
+            return dm_env.TimeStep(
+                dm_env.StepType.LAST,
+                self.task.get_reward(self._physics),
+                0.0,
+                self._last_observation,
+            )
+        self._last_observation = timestep.observation
+        return timestep
+
+
+def _navigation_config(kwargs: Mapping[str, Any]) -> NavigationConfig:
+    reward = kwargs.get("reward", "manifold")
+    if isinstance(reward, str):
+        reward = RewardConfig(metric=reward)  # type: ignore[arg-type]
+    if "curvature_weight" in kwargs:
+        reward = dataclasses.replace(reward, curvature_weight=float(kwargs["curvature_weight"]))
+    extras = tuple(kwargs.get("observations", ()))
+    return NavigationConfig(
+        action=kwargs.get("action", ActionConfig()),
+        reward=reward,
+        termination=kwargs.get("termination", TerminationConfig()),
+        observations=DEFAULT_OBSERVATIONS + tuple(o for o in extras if o not in
+                                                  DEFAULT_OBSERVATIONS),
+        pixels=kwargs.get("pixels", PixelsConfig()),
+    )
+
+
+def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> AnatomySource:
+    if entry.domain == "random_coronary":
+        return random_coronary.pool(
+            size=int(kwargs.get("pool_size", random_coronary.DEFAULT_POOL_SIZE)),
+            seed=int(kwargs.get("pool_seed", 0)),
+            cache_dir=None if kwargs.get("cache_dir") is None else Path(kwargs["cache_dir"]),
+        )
+    if entry.vessel is not None and entry.target is not None:
+        return FixedAnatomy(compile_anatomy(entry.vessel), entry.target)
+    missing = [k for k in ("vessel", "target") if k not in kwargs]
+    if missing:
+        raise TaskConfigError(
+            f"Domain {entry.domain!r} needs task_kwargs {missing}, e.g. "
+            "{'vessel': 'simplified_phantom', 'target': 'A'} or a vessel folder path."
+        )
+    return FixedAnatomy(compile_anatomy(kwargs["vessel"]), str(kwargs["target"]))
+
+
+def load(
+    domain_name: str,
+    task_name: str,
+    task_kwargs: Mapping[str, Any] | None = None,
+    environment_kwargs: Mapping[str, Any] | None = None,
+) -> NavigationEnvironment:
+    """Returns a navigation environment from the suite.
+
+    Args:
+        domain_name: A registered domain, e.g. ``"simplified_phantom"``.
+        task_name: A task of that domain, e.g. ``"task_a"``.
+        task_kwargs: ``random`` (seed), ``reward`` (``"manifold"``/``"euclidean"`` or a
+            :class:`~sim4endor.rewards.RewardConfig`), ``curvature_weight``, ``observations``
+            (extra entries), ``action`` / ``termination`` / ``pixels`` (config dataclasses);
+            domain ``vessel``: ``vessel``, ``target``; domain ``random_coronary``:
+            ``pool_size``, ``pool_seed``, ``cache_dir``.
+        environment_kwargs: Passed to ``control.Environment`` (e.g. ``time_limit``).
+
+    Raises:
+        sim4endor.registry.UnknownTaskError: For an unknown name; lists the valid ones.
+        sim4endor.tasks.TaskConfigError: For an unknown or invalid task keyword.
+    """
+    entry = registry.find(domain_name, task_name)
+    kwargs = dict(task_kwargs or {})
+    valid = _COMMON_KWARGS + _DOMAIN_KWARGS.get(entry.domain, ())
+    unknown = sorted(set(kwargs) - set(valid))
+    if unknown:
+        raise TaskConfigError(f"Unknown task_kwargs {unknown} for {domain_name}/{task_name}; "
+                              f"valid: {list(valid)}.")
+    config = _navigation_config(kwargs)
+    anatomies = _anatomy_source(entry, kwargs)
+    physics = physics_for(anatomies.initial())
+    task = NavigationTask(anatomies, config, random=kwargs.get("random"))
+    env_kwargs = {
+        "time_limit": config.termination.time_limit,
+        "control_timestep": config.action.control_timestep,
+        **dict(environment_kwargs or {}),
+    }
+    return NavigationEnvironment(physics, task, **env_kwargs)
+
+
+def physics_for(anatomy: Anatomy) -> GuidewirePhysics:
+    """Returns a fresh Physics (own MjData) of an anatomy's compiled model."""
+    return GuidewirePhysics.from_model(MjModel(anatomy.model))

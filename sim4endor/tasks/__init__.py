@@ -1,0 +1,30 @@
+"""Navigation tasks: the paper's MDP on top of :class:`sim4endor.physics.GuidewirePhysics`."""
+
+from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, AnatomySource, FixedAnatomy
+from sim4endor.tasks.config import (
+    DEFAULT_OBSERVATIONS,
+    OPTIONAL_OBSERVATIONS,
+    ActionConfig,
+    NavigationConfig,
+    PixelsConfig,
+    TaskConfigError,
+    TerminationConfig,
+)
+from sim4endor.tasks.navigation import FAILURES, InvalidActionError, NavigationTask
+
+__all__ = [
+    "DEFAULT_OBSERVATIONS",
+    "FAILURES",
+    "OPTIONAL_OBSERVATIONS",
+    "ActionConfig",
+    "Anatomy",
+    "AnatomyPool",
+    "AnatomySource",
+    "FixedAnatomy",
+    "InvalidActionError",
+    "NavigationConfig",
+    "NavigationTask",
+    "PixelsConfig",
+    "TaskConfigError",
+    "TerminationConfig",
+]

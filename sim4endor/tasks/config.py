@@ -1,0 +1,137 @@
+"""Typed configuration of the navigation MDP: action scaling, observations, termination."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.rewards import RewardConfig
+
+#: Observation entries every task returns: the paper's state s_t = [p_t, v_t].
+DEFAULT_OBSERVATIONS: tuple[str, ...] = ("tip_position", "tip_velocity")
+#: Entries that can be added through ``task_kwargs={"observations": (...)}``.
+OPTIONAL_OBSERVATIONS: tuple[str, ...] = (
+    "target_position",
+    "wire_shape",
+    "last_action",
+    "insertion",
+    "rotation",
+    "manifold_distance",
+    "pixels",
+)
+
+
+class TaskConfigError(Sim4EndoRError, ValueError):
+    """Raised for an invalid task setting; the message names it and the valid choices."""
+
+
+@dataclass(frozen=True)
+class ActionConfig:
+    """How a normalised action ``a in [-1, 1]^2`` becomes a robot command.
+
+    ``a[0] * max_insertion_step`` is the insertion increment Δd (m, positive inserts) and
+    ``a[1] * max_rotation_step`` the rotation increment Δθ (rad, about the wire axis) applied
+    per control step. The defaults at 20 Hz give at most 30 mm/s and 180 °/s, enough for the
+    paper's 5–8 s completion times on the ~100 mm paths of the simplified phantom.
+
+    Attributes:
+        control_timestep: Seconds of simulated time per control step (20 Hz).
+        max_insertion_step: Largest |Δd| per control step (m).
+        max_rotation_step: Largest |Δθ| per control step (rad).
+    """
+
+    control_timestep: float = 0.05
+    max_insertion_step: float = 1.5e-3
+    max_rotation_step: float = math.radians(9.0)
+
+    def __post_init__(self) -> None:
+        for name in ("control_timestep", "max_insertion_step", "max_rotation_step"):
+            if not getattr(self, name) > 0:
+                raise TaskConfigError(f"ActionConfig.{name} must be positive.")
+
+
+@dataclass(frozen=True)
+class TerminationConfig:
+    """When an episode ends early (time limit: ``time_limit``; success: the reward's threshold).
+
+    Failure states (paper: "exceeding operational limits and colliding with vessel walls"),
+    each ending the episode with the -100 penalty and discount 0:
+
+    * ``wall_force``: total normal force of the wire on the vessel wall above
+      ``max_wall_force`` (N);
+    * ``outside_lumen``: the tip further than ``lumen_margin`` (m) outside the lumen, i.e.
+      its distance from the centerline graph exceeds the local radius by that much;
+    * ``insertion_limit``: the commanded insertion beyond ``max_insertion`` (m; default: the
+      end of the driver's travel). Retracting to the home position (insertion 0) is a hard
+      stop of the carriage, not a failure;
+    * ``rotation_limit``: the commanded rotation beyond ±``max_rotation`` (rad; default: the
+      driver's rotation range);
+    * ``instability``: a non-finite state or a MuJoCo warning during the step.
+
+    Attributes:
+        time_limit: Simulated seconds per episode (truncation, discount 1).
+        max_wall_force: Wall force threshold (N).
+        lumen_margin: Allowed tip excursion beyond the lumen radius (m).
+        max_insertion: Largest commanded insertion (m) before the episode fails; ``None``
+            uses the driver's insertion range.
+        max_rotation: Largest |commanded rotation| (rad) before the episode fails; ``None``
+            uses the driver's rotation range.
+    """
+
+    time_limit: float = 20.0
+    max_wall_force: float = 1.0
+    lumen_margin: float = 0.5e-3
+    max_insertion: float | None = None
+    max_rotation: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("time_limit", "max_wall_force", "lumen_margin", "max_insertion",
+                     "max_rotation"):
+            value = getattr(self, name)
+            if value is not None and not value > 0:
+                raise TaskConfigError(f"TerminationConfig.{name} must be positive.")
+
+
+@dataclass(frozen=True)
+class PixelsConfig:
+    """The fluoroscopy-like image: a top-down (antero-posterior) grey-level projection.
+
+    Attributes:
+        height: Image height (pixels).
+        width: Image width (pixels).
+        elevation: Camera elevation (deg); -90 looks straight down the model's z axis.
+        azimuth: Camera azimuth (deg).
+    """
+
+    height: int = 64
+    width: int = 64
+    elevation: float = -90.0
+    azimuth: float = 90.0
+
+
+@dataclass(frozen=True)
+class NavigationConfig:
+    """Everything a navigation task needs besides the anatomy.
+
+    Attributes:
+        action: Action scaling and control frequency.
+        reward: The paper's reward constants and metric.
+        termination: Failure thresholds and time limit.
+        observations: Observation entries, defaults first (see ``OPTIONAL_OBSERVATIONS``).
+        pixels: Image settings, used when ``"pixels"`` is observed.
+    """
+
+    action: ActionConfig = field(default_factory=ActionConfig)
+    reward: RewardConfig = field(default_factory=RewardConfig)
+    termination: TerminationConfig = field(default_factory=TerminationConfig)
+    observations: tuple[str, ...] = DEFAULT_OBSERVATIONS
+    pixels: PixelsConfig = field(default_factory=PixelsConfig)
+
+    def __post_init__(self) -> None:
+        valid = DEFAULT_OBSERVATIONS + OPTIONAL_OBSERVATIONS
+        unknown = [o for o in self.observations if o not in valid]
+        if unknown:
+            raise TaskConfigError(f"Unknown observations {unknown}; valid: {list(valid)}.")
+        if len(set(self.observations)) != len(self.observations):
+            raise TaskConfigError(f"Observations listed twice: {list(self.observations)}.")

@@ -1,0 +1,309 @@
+"""The guidewire navigation task: the paper's MDP as a dm_control ``base.Task``.
+
+One control step applies the action, advances the physics ``control_timestep`` seconds and
+then evaluates the new state once (:meth:`NavigationTask.after_step`); reward, termination
+and the per-step ``info`` all read that evaluation, so they always agree.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from dm_control import mujoco as dm_mujoco
+from dm_control.mujoco.wrapper import MjData, MjModel
+from dm_control.rl import control
+from dm_control.suite import base
+from dm_env import specs
+from numpy.typing import NDArray
+
+from sim4endor import rewards
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.models import constants as names
+from sim4endor.tasks.anatomy import Anatomy, AnatomySource
+from sim4endor.tasks.config import NavigationConfig
+
+FloatArray = NDArray[np.float64]
+
+#: Failure reasons, in the order they are checked.
+FAILURES: tuple[str, ...] = (
+    "instability",
+    "wall_force",
+    "outside_lumen",
+    "insertion_limit",
+    "rotation_limit",
+)
+
+
+class InvalidActionError(Sim4EndoRError, ValueError):
+    """Raised for a NaN/inf or wrongly shaped action; it never reaches MuJoCo."""
+
+
+@dataclass(frozen=True)
+class StepEvaluation:
+    """Everything the task concludes about the state after a control step.
+
+    Attributes:
+        distance: Reward-metric distance from the tip to the target (m).
+        manifold_distance: Geodesic distance along the centerline graph (m), for reporting.
+        wall_force: Total normal wire–wall contact force (N).
+        lumen_excess: Distance of the tip outside the lumen (m; <= 0 inside).
+        success: Whether the tip reached the target.
+        failure: Failure reason (one of :data:`FAILURES`) or ``""``.
+        terms: The reward terms of this step.
+    """
+
+    distance: float
+    manifold_distance: float
+    wall_force: float
+    lumen_excess: float
+    success: bool
+    failure: str
+    terms: rewards.RewardTerms
+
+
+def lumen_excess(anatomy: Anatomy, point: FloatArray) -> float:
+    """Returns how far ``point`` lies outside the lumen (m; negative inside).
+
+    The lumen is approximated by the tubes around the centerline graph, so the excess is the
+    distance to the graph minus the interpolated radius. Points behind the inlet plane are in
+    the introducer sheath and count as inside.
+    """
+    vessel = anatomy.vessel
+    if float(np.dot(point - vessel.inlet_position, vessel.inlet_direction)) < 0.0:
+        return -math.inf
+    graph = vessel.centerline
+    proj = graph.project(point)
+    i, j = graph.edges[proj.edge]
+    radius = (1.0 - proj.fraction) * graph.radii[i] + proj.fraction * graph.radii[j]
+    return proj.distance - float(radius)
+
+
+class NavigationTask(base.Task):
+    """Steer the guidewire tip to a target point of a vessel tree.
+
+    See :mod:`sim4endor.suite` for the observation, action and reward tables.
+    """
+
+    def __init__(
+        self,
+        anatomies: AnatomySource,
+        config: NavigationConfig | None = None,
+        random: int | np.random.RandomState | None = None,
+    ) -> None:
+        """Initialises the task.
+
+        Args:
+            anatomies: Where each episode's anatomy and target come from.
+            config: Action, reward, termination and observation settings.
+            random: Seed or ``RandomState`` of the task's own generator.
+        """
+        super().__init__(random=random)
+        self.config = config or NavigationConfig()
+        self._anatomies = anatomies
+        self._distances: dict[tuple[str, str, str], rewards.DistanceToTarget] = {}
+        self._anatomy = anatomies.initial()
+        self._target = ""
+        self._insertion = 0.0
+        self._rotation = 0.0
+        self._last_action = np.zeros(2)
+        self._d_last = 0.0
+        self._max_insertion = math.inf
+        self._max_rotation = math.inf
+        self._evaluation: StepEvaluation | None = None
+        self._camera: dm_mujoco.MovableCamera | None = None
+
+    # ------------------------------------------------------------------------ anatomy
+    @property
+    def anatomy(self) -> Anatomy:
+        """The current episode's anatomy."""
+        return self._anatomy
+
+    @property
+    def target(self) -> str:
+        """The current episode's target label."""
+        return self._target
+
+    @property
+    def target_position(self) -> FloatArray:
+        """The current target point (m)."""
+        graph = self._anatomy.vessel.centerline
+        return np.array(graph.nodes[graph.labels[self._target]])
+
+    def _distance(self, metric: rewards.MetricName) -> rewards.DistanceToTarget:
+        key = (self._anatomy.key, self._target, metric)
+        if key not in self._distances:
+            cfg = self.config.reward
+            if metric != cfg.metric:
+                cfg = rewards.RewardConfig(metric=metric, curvature_weight=cfg.curvature_weight)
+            self._distances[key] = rewards.make_distance(
+                cfg, self._anatomy.vessel.centerline, self._target
+            )
+        return self._distances[key]
+
+    # ------------------------------------------------------------------------ episode
+    def initialize_episode(self, physics: control.Physics) -> None:
+        """Draws the anatomy/target, swaps the compiled model if it changed, homes the wire."""
+        anatomy, self._target = self._anatomies.draw(self.random)
+        if anatomy is not self._anatomy:
+            # Physics was compiled for another anatomy: load this one's cached model.
+            physics._reload_from_data(MjData(MjModel(anatomy.model)))
+            self._camera = None
+        self._anatomy = anatomy
+        self._max_insertion, self._max_rotation = self._limits(physics)
+        self._insertion = 0.0
+        self._rotation = 0.0
+        self._last_action = np.zeros(2)
+        physics.set_driver_targets(self._insertion, self._rotation)
+        self._d_last = self._distance(self.config.reward.metric)(physics.tip_position())
+        self._evaluation = None
+
+    def _limits(self, physics: control.Physics) -> tuple[float, float]:
+        """Returns the failure limits of commanded insertion and |rotation| (m, rad)."""
+        term = self.config.termination
+        ranges = physics.named.model.actuator_ctrlrange
+        max_insertion = float(ranges[names.INSERTION_ACTUATOR][1])
+        max_rotation = float(np.max(np.abs(ranges[names.ROTATION_ACTUATOR])))
+        return (
+            max_insertion if term.max_insertion is None else term.max_insertion,
+            max_rotation if term.max_rotation is None else term.max_rotation,
+        )
+
+    def action_spec(self, physics: control.Physics) -> specs.BoundedArray:
+        """Normalised [insertion, rotation] increments in [-1, 1]."""
+        return specs.BoundedArray(
+            shape=(2,), dtype=np.float64, minimum=-1.0, maximum=1.0, name="insert_rotate"
+        )
+
+    def before_step(self, action: np.ndarray, physics: control.Physics) -> None:
+        """Validates the action and moves the driver targets by Δd, Δθ."""
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (2,):
+            raise InvalidActionError(
+                f"Action must have shape (2,) = [insertion, rotation], got {a.shape}."
+            )
+        if not np.all(np.isfinite(a)):
+            raise InvalidActionError(
+                f"Action {a.tolist()} is not finite; NaN/inf actions are rejected so they "
+                "never reach MuJoCo. Check the policy's outputs."
+            )
+        a = np.clip(a, -1.0, 1.0)
+        cfg = self.config.action
+        # The carriage cannot retract behind its home position: a hard stop, not a failure.
+        self._insertion = max(0.0, self._insertion + a[0] * cfg.max_insertion_step)
+        self._rotation += a[1] * cfg.max_rotation_step
+        self._last_action = a
+        physics.set_driver_targets(self._insertion, self._rotation)
+
+    def after_step(self, physics: control.Physics) -> None:
+        """Evaluates the new state once: distance, success, failure, reward terms."""
+        self._evaluation = self._evaluate(physics, unstable=False)
+
+    def mark_unstable(self, physics: control.Physics) -> None:
+        """Records that the last physics step raised an error (see the suite's environment)."""
+        self._evaluation = self._evaluate(physics, unstable=True)
+
+    def _evaluate(self, physics: control.Physics, unstable: bool) -> StepEvaluation:
+        term = self.config.termination
+        unstable = unstable or not physics.is_finite()
+        if unstable:
+            distance = manifold = self._d_last
+            force, excess = math.inf, math.inf
+        else:
+            tip = physics.tip_position()
+            distance = self._distance(self.config.reward.metric)(tip)
+            manifold = self._distance("manifold")(tip)
+            force = float(physics.wall_contact_force())
+            excess = lumen_excess(self._anatomy, tip)
+        checks = {
+            "instability": unstable,
+            "wall_force": force > term.max_wall_force,
+            "outside_lumen": excess > term.lumen_margin,
+            "insertion_limit": self._insertion > self._max_insertion,
+            "rotation_limit": abs(self._rotation) > self._max_rotation,
+        }
+        failure = next((name for name in FAILURES if checks[name]), "")
+        success = not failure and distance <= self.config.reward.success_distance
+        terms = rewards.reward_terms(
+            self.config.reward, self._d_last, distance, success=success, failed=bool(failure)
+        )
+        self._d_last = distance
+        return StepEvaluation(distance, manifold, force, excess, success, failure, terms)
+
+    def get_reward(self, physics: control.Physics) -> float:
+        """Returns the sum of this step's reward terms."""
+        return self._current().terms.total
+
+    def get_termination(self, physics: control.Physics) -> float | None:
+        """Returns 0.0 (discount) on success or failure, else None."""
+        evaluation = self._current()
+        return 0.0 if evaluation.success or evaluation.failure else None
+
+    def _current(self) -> StepEvaluation:
+        if self._evaluation is None:
+            raise RuntimeError("The task has not evaluated a step yet; call after_step first.")
+        return self._evaluation
+
+    def step_info(self) -> dict[str, float | bool | str]:
+        """Returns the reward terms and diagnostics of the last step (for ``info``)."""
+        ev = self._current()
+        return {
+            "reward_distance": ev.terms.distance,
+            "reward_goal": ev.terms.goal,
+            "reward_failure": ev.terms.failure,
+            "distance": ev.distance,
+            "manifold_distance": ev.manifold_distance,
+            "wall_force": ev.wall_force,
+            "lumen_excess": ev.lumen_excess,
+            "is_success": ev.success,
+            "failure": ev.failure,
+            "insertion_command": self._insertion,
+            "rotation_command": self._rotation,
+        }
+
+    # -------------------------------------------------------------------- observation
+    def get_observation(self, physics: control.Physics) -> Mapping[str, np.ndarray]:
+        """Returns the configured observation entries, in order (SI units)."""
+        obs: collections.OrderedDict[str, np.ndarray] = collections.OrderedDict()
+        for name in self.config.observations:
+            obs[name] = self._observe(name, physics)
+        return obs
+
+    def _observe(self, name: str, physics: control.Physics) -> np.ndarray:
+        if name == "tip_position":
+            return np.array(physics.tip_position(), dtype=np.float64)
+        if name == "tip_velocity":
+            return np.array(physics.tip_velocity(), dtype=np.float64)
+        if name == "target_position":
+            return self.target_position
+        if name == "wire_shape":
+            return np.asarray(physics.wire_points(), dtype=np.float64).reshape(-1)
+        if name == "last_action":
+            return self._last_action.copy()
+        if name == "insertion":
+            return np.array([physics.insertion_depth()], dtype=np.float64)
+        if name == "rotation":
+            return np.array([physics.rotation_angle()], dtype=np.float64)
+        if name == "manifold_distance":
+            return np.array([self._distance("manifold")(physics.tip_position())])
+        if name == "pixels":
+            return self._fluoroscopy(physics)
+        raise KeyError(name)  # unreachable: NavigationConfig validates the names
+
+    def _fluoroscopy(self, physics: control.Physics) -> np.ndarray:
+        """Returns a grey-level top-down projection, dark wire on a bright background."""
+        cfg = self.config.pixels
+        if self._camera is None:
+            self._camera = dm_mujoco.MovableCamera(physics, height=cfg.height, width=cfg.width)
+            self._camera.set_pose(
+                lookat=physics.model.stat.center,
+                distance=2.0 * float(physics.model.stat.extent),
+                azimuth=cfg.azimuth,
+                elevation=cfg.elevation,
+            )
+        rgb = self._camera.render().astype(np.float64)
+        grey = rgb @ np.array([0.299, 0.587, 0.114])
+        return (255.0 - grey).astype(np.uint8)[:, :, None]

@@ -1,0 +1,67 @@
+"""The ``random_coronary`` domain: a seeded pool of generated coronary trees.
+
+Generating a tree and decomposing its wall into convex hulls costs seconds to a minute, far
+too much per episode. The domain therefore draws each episode's anatomy from a pool of
+``pool_size`` trees with seeds ``pool_seed, pool_seed + 1, ...``: a tree is generated and
+built the first time an episode draws it, written to a cache folder (reused by later
+processes), and compiled once; later episodes on it only reset the state.
+
+The trees use :class:`~sim4endor.vessels.generators.CoronaryTreeConfig` with radii of at least
+:data:`MIN_RADIUS` so the wire's pre-bent tip (1.48 mm lateral offset) fits every branch.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+
+from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, compile_anatomy
+from sim4endor.vessels.manifest import MANIFEST_FILE
+
+#: Pool members when ``task_kwargs`` does not say.
+DEFAULT_POOL_SIZE = 8
+#: Smallest lumen radius of pool trees (m): the J-tip needs R - r_wire > 1.48 mm.
+MIN_RADIUS = 1.75e-3
+#: Lumen radius at a pool tree's inlet (m).
+ROOT_RADIUS = 2.2e-3
+#: Bifurcation levels of pool trees.
+LEVELS = 2
+
+
+def default_cache_dir() -> Path:
+    """Returns ``$XDG_CACHE_HOME/sim4endor/random_coronary`` (default under ``~/.cache``)."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "sim4endor" / "random_coronary"
+
+
+def build_member(seed: int, cache_dir: Path) -> Anatomy:
+    """Generates, builds (once, cached on disk) and compiles the pool tree of ``seed``."""
+    folder = cache_dir / f"coronary_{seed:05d}"
+    if not (folder / MANIFEST_FILE).is_file():
+        # Heavy imports only when a tree really has to be built.
+        from sim4endor.vessels.build import build_vessel
+        from sim4endor.vessels.generators import CoronaryTreeConfig, coronary_tree
+
+        config = CoronaryTreeConfig(levels=LEVELS, root_radius=ROOT_RADIUS, min_radius=MIN_RADIUS)
+        tree = coronary_tree(config, seed=seed)
+        build_vessel(
+            tree.lumen,
+            name=folder.name,
+            out_dir=folder,
+            units="m",
+            centerline=tree.centerline,
+            inlet=tree.inlet_position,
+            targets=tree.targets,
+            source=tree.description,
+            progress=False,
+        )
+    return compile_anatomy(folder)
+
+
+def pool(size: int, seed: int, cache_dir: Path | None = None) -> AnatomyPool:
+    """Returns the lazily built pool of ``size`` trees with seeds ``seed ... seed + size - 1``."""
+    folder = cache_dir or default_cache_dir()
+    return AnatomyPool(
+        [functools.partial(build_member, seed + k, folder) for k in range(size)]
+    )
