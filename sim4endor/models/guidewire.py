@@ -30,7 +30,9 @@ How the rod is built (and why):
   through the wall at usable time steps. ``mass_scale`` multiplies the density (and gravity
   stays off in ``mjcf/options.xml``). Static results (cantilever deflection, torque transfer)
   do not depend on mass; the validation benchmark measures them with and without scaling.
-  Ball-joint damping and armature are needed because the plugin's forces are explicit.
+  Ball-joint damping and armature are needed because the plugin's forces are explicit; both
+  are set per joint in proportion to the joint's stiffness (``damping_time``,
+  ``armature_time``).
 """
 
 from __future__ import annotations
@@ -76,8 +78,12 @@ class GuidewireConfig:
         tip_segments: Number of (equal) segments along the pre-bent tip.
         max_segment_length: Longest shaft segment (m).
         segment_growth: Ratio between consecutive segment lengths from tip to shaft (>= 1).
-        joint_damping: Damping of every ball joint (N·m·s/rad).
-        joint_armature: Armature of every ball joint (kg·m²).
+        damping_time: Ball-joint damping as a time constant (s): each joint's damping is
+            ``damping_time`` times its bending stiffness ``E·I/l`` (N·m/rad), so short tip
+            segments and long shaft segments relax alike.
+        armature_time: Ball-joint armature as a time (s): armature = stiffness ×
+            ``armature_time²``. The plugin's spring is explicit; it stays stable while the
+            time step is below about ``2·armature_time``.
     """
 
     length: float = 0.15
@@ -94,8 +100,8 @@ class GuidewireConfig:
     tip_segments: int = 5
     max_segment_length: float = 0.005
     segment_growth: float = 1.5
-    joint_damping: float = 1.25e-3
-    joint_armature: float = 2.5e-6
+    damping_time: float = 0.025
+    armature_time: float = 0.0075
 
     def __post_init__(self) -> None:
         positive = (
@@ -127,9 +133,9 @@ class GuidewireConfig:
                 "GuidewireConfig.tip_segments must be >= 1 and segment_growth >= 1, got "
                 f"{self.tip_segments} and {self.segment_growth}."
             )
-        if self.friction < 0 or self.joint_damping < 0 or self.joint_armature < 0:
+        if self.friction < 0 or self.damping_time < 0 or self.armature_time < 0:
             raise GuidewireConfigError(
-                "GuidewireConfig.friction, joint_damping and joint_armature must be >= 0."
+                "GuidewireConfig.friction, damping_time and armature_time must be >= 0."
             )
 
     @property
@@ -237,6 +243,9 @@ def add_guidewire(spec: mujoco.MjSpec, parent: mujoco.MjsBody, config: Guidewire
     headings = _segment_headings(config, len(lengths))
     factors = _stiffness_factors(config, lengths)
     core_radius = 0.5 * (config.core_diameter or config.outer_diameter)
+    # Joint b's bending stiffness as the plugin will compute it: E·I·factor / l_(b-1).
+    joint_stiffness = np.zeros(len(lengths))
+    joint_stiffness[1:] = config.bending_stiffness * factors[1:] / lengths[:-1]
 
     spec.activate_plugin(_CABLE_PLUGIN)
     plugin = spec.add_plugin(name=names.WIRE_PLUGIN, plugin_name=_CABLE_PLUGIN, active=True)
@@ -260,8 +269,8 @@ def add_guidewire(spec: mujoco.MjSpec, parent: mujoco.MjsBody, config: Guidewire
             body.add_joint(
                 name=names.wire_joint(index),
                 type=mujoco.mjtJoint.mjJNT_BALL,
-                damping=config.joint_damping,
-                armature=config.joint_armature,
+                damping=config.damping_time * joint_stiffness[index],
+                armature=joint_stiffness[index] * config.armature_time**2,
             )
         body.add_geom(
             core_default,

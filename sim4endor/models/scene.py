@@ -14,6 +14,7 @@ model, so callers may edit their copy.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,6 +47,25 @@ class SceneConfig:
     wire: GuidewireConfig = field(default_factory=GuidewireConfig)
     driver: DriverConfig = field(default_factory=DriverConfig)
     timestep: float | None = None
+
+
+def config_for_vessel(
+    vessel: Vessel, base: SceneConfig | None = None, margin: float = 0.01
+) -> SceneConfig:
+    """Returns ``base`` with the insertion range and wire length sized to ``vessel``.
+
+    Per-step cost grows with the number of wire segments, so the wire is only as long as the
+    deepest target needs: ``max_insertion`` = the largest centerline distance from the inlet
+    to a target plus ``margin``; the wire adds the protrusion and 3 mm of sheath slack.
+    """
+    base = base or SceneConfig()
+    graph = vessel.centerline
+    from_inlet = graph.geodesic_from(graph.labels["inlet"])
+    depth = max(float(from_inlet[graph.labels[name]]) for name in vessel.targets)
+    driver = dataclasses.replace(base.driver, max_insertion=depth + margin)
+    length = driver.max_insertion + driver.initial_protrusion + 0.003
+    wire = dataclasses.replace(base.wire, length=length)
+    return dataclasses.replace(base, driver=driver, wire=wire)
 
 
 def base_spec() -> mujoco.MjSpec:

@@ -1,0 +1,179 @@
+"""Guidewire validation (issue 3 item 4): mechanics, steering, escape, speed.
+
+    python experiments/benchmarks/guidewire_validation.py [--vessel simplified_phantom]
+        [--tries 10] [--seed 0] [--json]
+
+Prints a human-readable report, or with ``--json`` one JSON line with exactly the keys
+cantilever_rel_error, torque_error_deg, steer_success_a, steer_success_b,
+max_escape_over_radius, realtime_factor; the cost-vs-segment-count table is printed (to
+stderr with ``--json``). Run it on one core for the speed figures, e.g.
+``OMP_NUM_THREADS=1 taskset -c 0 python ...``; the load average is printed with them.
+
+Definitions:
+* cantilever_rel_error: clamped straight wire, small lateral tip load, static deflection vs
+  F L³/(3EI); the larger error of the real-mass and the mass-scaled wire (both printed).
+* torque_error_deg: tip inside the vessel's straight inlet segment, driver rotated 90°, held
+  until settled; |rotation of the tip's bend direction − 90°|.
+* steer_success_a/b: fraction of seeded rotate-then-insert tries (rotation ±15° noise, speed
+  0.75–1.5 × 20 mm/s) whose tip reaches a manifold distance <= 1 mm from End Point A/B
+  (tip projected on the centerline graph, distance along the graph, as the reward does).
+* max_escape_over_radius: 10 s at maximum insertion speed into the dead end of branch A
+  while rotating back and forth (so the wire slides along the wall); largest distance of any
+  wire point outside the lumen (distance to the centerline graph minus the local radius) in
+  wire radii; NaN or MuJoCo warnings make it infinite.
+* realtime_factor: simulated seconds per second of stepping + policy over all steering
+  episodes, timed with this thread's CPU time: on the shared development machine that is the
+  wall time one dedicated core would need (the wall-clock figure and the load average are
+  printed beside it; on an idle machine with one thread they agree).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+from sim4endor import vessels
+from sim4endor.models import validation
+from sim4endor.models.guidewire import GuidewireConfig
+from sim4endor.models.scene import SceneConfig, config_for_vessel
+from sim4endor.physics import GuidewirePhysics
+
+SPEED = 0.02
+TARGET_ROTATION = {"A": 0.0, "B": math.pi}
+
+
+def cantilever_errors(wire: GuidewireConfig) -> dict[str, float]:
+    """Real mass (settles fast) and the default mass-scaled wire (slow, heavily damped)."""
+    real = validation.cantilever(dataclasses.replace(wire, mass_scale=1.0), settle_time=3.0)
+    # The scaled wire's lowest free mode has a period of seconds; extra damping lets it
+    # settle to its static shape, which does not depend on damping or mass.
+    scaled = validation.cantilever(dataclasses.replace(wire, damping_time=2.0), settle_time=60.0)
+    return {"real_mass": real.relative_error, "mass_scaled": scaled.relative_error,
+            "predicted_mm": real.predicted * 1e3, "real_mm": real.deflection * 1e3,
+            "scaled_mm": scaled.deflection * 1e3}
+
+
+def torque_error(vessel: vessels.Vessel, config: SceneConfig) -> float:
+    """Rotates the driver by 90° with the tip in the inlet segment; returns the error (deg)."""
+    physics = GuidewirePhysics.from_vessel(vessel, config)
+    physics.set_driver_targets(0.02, 0.0)
+    physics.step(round(2.0 / physics.model.opt.timestep))
+    before = validation.tip_bend_direction(physics)
+    physics.set_driver_targets(0.02, math.pi / 2)
+    physics.step(round(3.0 / physics.model.opt.timestep))
+    after = validation.tip_bend_direction(physics)
+    turned = math.degrees((after - before + math.pi) % (2 * math.pi) - math.pi)
+    return abs(abs(turned) - 90.0)
+
+
+def steering(vessel: vessels.Vessel, config: SceneConfig, tries: int, seed: int) -> dict:
+    """Seeded rotate-then-insert tries per target; success rates and the speed figure."""
+    rng = np.random.default_rng(seed)
+    physics = GuidewirePhysics.from_vessel(vessel, config)
+    out: dict = {"sim_time": 0.0, "wall_time": 0.0, "cpu_time": 0.0, "episodes": []}
+    for target in ("A", "B"):
+        wins = 0
+        for k in range(tries):
+            noise = 0.0 if k == 0 else math.radians(rng.uniform(-15.0, 15.0))
+            speed = SPEED if k == 0 else SPEED * rng.uniform(0.75, 1.5)
+            result = validation.steer(
+                physics, vessel, target, TARGET_ROTATION[target] + noise, speed
+            )
+            wins += result.success
+            out["sim_time"] += result.sim_time
+            out["wall_time"] += result.wall_time
+            out["cpu_time"] += result.cpu_time
+            out["episodes"].append((target, round(math.degrees(noise), 1),
+                                    round(speed * 1e3, 1), result))
+        out[target] = wins / tries
+    return out
+
+
+def escape(vessel: vessels.Vessel, config: SceneConfig, duration: float = 10.0) -> float:
+    """Worst escape (wire radii) while pushing at max speed into branch A's dead end."""
+    physics = GuidewirePhysics.from_vessel(vessel, config)
+    v_ins = physics.max_speeds()[0]
+    period = 0.05
+    substeps = round(period / physics.model.opt.timestep)
+    worst = 0.0
+    while physics.data.time < duration:
+        # Sweep ±90° (after the first second) so the pushed wire slides along the wall.
+        _, angle = physics.driver_targets()
+        goal = 0.0 if physics.data.time < 1.0 else math.pi / 2 * math.sin(physics.data.time)
+        physics.apply_increments(v_ins * period, goal - angle, period)
+        physics.step(substeps)
+        if not physics.is_finite() or physics.warnings():
+            return math.inf
+        worst = max(worst, validation.escape_depth(physics, vessel))
+    return worst / config.wire.radius
+
+
+def segment_table(vessel: vessels.Vessel, config: SceneConfig) -> list[dict]:
+    """Cost of one steering episode (target A) versus the shaft segment length."""
+    rows = []
+    for max_len in (0.008, 0.005, 0.0025, 0.0015):
+        wire = dataclasses.replace(config.wire, max_segment_length=max_len)
+        scene = dataclasses.replace(config, wire=wire)
+        physics = GuidewirePhysics.from_vessel(vessel, scene)
+        result = validation.steer(physics, vessel, "A", 0.0, SPEED)
+        steps = result.sim_time / physics.model.opt.timestep
+        rows.append({"segments": wire.num_segments, "max_segment_mm": max_len * 1e3,
+                     "steps_per_s": steps / result.cpu_time,
+                     "realtime_factor": result.sim_time / result.cpu_time,
+                     "reached_A": result.success})
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--vessel", default="simplified_phantom")
+    parser.add_argument("--tries", type=int, default=10)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    log = sys.stderr if args.json else sys.stdout
+    vessel = vessels.load(args.vessel)
+    config = config_for_vessel(vessel)
+    started = time.perf_counter()
+    cantilever = cantilever_errors(config.wire)
+    torque = torque_error(vessel, config)
+    steer = steering(vessel, config, args.tries, args.seed)
+    escape_radii = escape(vessel, config)
+    table = segment_table(vessel, config)
+    result = {
+        "cantilever_rel_error": max(cantilever["real_mass"], cantilever["mass_scaled"]),
+        "torque_error_deg": torque,
+        "steer_success_a": steer["A"],
+        "steer_success_b": steer["B"],
+        "max_escape_over_radius": float(escape_radii),
+        "realtime_factor": steer["sim_time"] / steer["cpu_time"],
+    }
+    print(f"vessel {vessel.name}, wire {config.wire.num_segments} segments, dt "
+          f"{GuidewirePhysics.from_vessel(vessel, config).model.opt.timestep * 1e3:g} ms, "
+          f"load average {os.getloadavg()[0]:.2f}", file=log)
+    print(f"cantilever: {cantilever}", file=log)
+    for target, noise, speed, res in steer["episodes"]:
+        print(f"  steer {target} noise {noise:+.1f} deg speed {speed} mm/s: success "
+              f"{res.success} distance {res.final_distance * 1e3:.2f} mm t {res.sim_time:.2f} s "
+              f"escape {res.max_escape * 1e3:.3f} mm", file=log)
+    print(f"realtime factor by wall clock {steer['sim_time'] / steer['wall_time']:.1f}, by CPU "
+          f"time {result['realtime_factor']:.1f}", file=log)
+    print("segments | max segment (mm) | steps/s (CPU) | realtime factor (CPU) | reached A",
+          file=log)
+    for row in table:
+        print(f"{row['segments']:8d} | {row['max_segment_mm']:16.1f} | "
+              f"{row['steps_per_s']:13.0f} | {row['realtime_factor']:21.1f} | {row['reached_A']}",
+              file=log)
+    print(f"total {time.perf_counter() - started:.0f} s", file=log)
+    print(json.dumps(result) if args.json else result)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,175 @@
+"""Measurements that validate the guidewire model (used by tests and the benchmark).
+
+* :func:`cantilever` — static tip deflection of a clamped straight wire under a small tip
+  load, against Euler–Bernoulli ``δ = F L³ / (3 E I)``.
+* :func:`tip_bend_direction` — the direction the pre-bent tip points to, about the shaft axis
+  (for torque transmission: rotate the base, compare the tip's rotation).
+* :func:`escape_depth` — how far any wire point is outside the lumen (distance from the
+  centerline graph minus the local radius, positive part).
+* :func:`steer` — the scripted rotate-then-insert policy towards a target; success is a
+  manifold distance (tip projected on the centerline graph, distance along the graph, as the
+  paper's reward) of at most ``tolerance``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from sim4endor.models import constants as names
+from sim4endor.models.guidewire import GuidewireConfig, segment_lengths
+from sim4endor.models.scene import SceneConfig
+from sim4endor.physics import GuidewirePhysics
+from sim4endor.vessels import Vessel
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class CantileverResult:
+    """Outcome of :func:`cantilever` (SI units)."""
+
+    deflection: float
+    predicted: float
+    free_length: float
+    force: float
+
+    @property
+    def relative_error(self) -> float:
+        """``|measured − predicted| / predicted``."""
+        return abs(self.deflection - self.predicted) / self.predicted
+
+
+def cantilever(
+    wire: GuidewireConfig, timestep: float = 0.005, settle_time: float = 3.0,
+    deflection_fraction: float = 0.01,
+) -> CantileverResult:
+    """Clamps a straight wire (no pre-bend, uniform stiffness) and loads its tip sideways.
+
+    Contacts are disabled (the sheath would hold the wire). The carriage's joints (slide and
+    twist about the wire axis) cannot move under a lateral tip force, so the wire is clamped
+    at the end of its first (welded) segment; the free
+    length is measured from there. The load is chosen for a deflection of
+    ``deflection_fraction`` of the free length (small-deflection theory holds).
+    """
+    straight = dataclasses.replace(wire, tip_angle=0.0, tip_stiffness_factor=1.0)
+    physics = GuidewirePhysics.from_vessel(None, SceneConfig(wire=straight, timestep=timestep))
+    free_length = straight.length - float(segment_lengths(straight)[0])
+    ei = straight.bending_stiffness
+    force = 3 * ei * deflection_fraction / free_length**2
+    model, data = physics.model.ptr, physics.data.ptr
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT  # free of the sheath
+    start = physics.tip_position()
+    tip_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE)
+    tip_body = int(model.site_bodyid[tip_site])
+    steps = round(settle_time / model.opt.timestep)
+    for _ in range(steps):
+        data.qfrc_applied[:] = 0.0
+        mujoco.mj_applyFT(
+            model, data, np.array([0.0, 0.0, force]), np.zeros(3), physics.tip_position(),
+            tip_body, data.qfrc_applied,
+        )
+        physics.step()
+    deflection = float(physics.tip_position()[2] - start[2])
+    return CantileverResult(deflection, force * free_length**3 / (3 * ei), free_length, force)
+
+
+def tip_bend_direction(physics: GuidewirePhysics, back: float = 0.008) -> float:
+    """Returns the angle (rad) of the tip's bend about the local shaft axis.
+
+    The shaft axis is the chord of the wire between ``2·back`` and ``back`` metres from the
+    tip; the bend is the tip's offset from that axis, its angle measured in a frame built
+    from world +z projected orthogonal to the axis (any fixed rule works for differences).
+    """
+    points = physics.wire_points()
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    s_tip = arc[-1]
+
+    def at(s: float) -> FloatArray:
+        return np.array([np.interp(s, arc, points[:, k]) for k in range(3)])
+
+    base, mid = at(s_tip - 2 * back), at(s_tip - back)
+    axis = (mid - base) / np.linalg.norm(mid - base)
+    offset = points[-1] - mid
+    offset -= axis * np.dot(offset, axis)
+    ref = np.array([0.0, 0.0, 1.0]) - axis * axis[2]
+    ref /= np.linalg.norm(ref)
+    other = np.cross(axis, ref)
+    return float(math.atan2(np.dot(offset, other), np.dot(offset, ref)))
+
+
+def escape_depth(physics: GuidewirePhysics, vessel: Vessel) -> float:
+    """Largest distance (m) of a wire point outside the lumen; 0 when all are inside.
+
+    Points behind the inlet plane (in the sheath) are not part of the vessel and are skipped.
+    """
+    points = physics.wire_points()
+    ahead = (points - vessel.inlet_position) @ vessel.inlet_direction > 0
+    worst = 0.0
+    graph = vessel.centerline
+    for point in points[ahead]:
+        projection = graph.project(point)
+        i, j = graph.edges[projection.edge]
+        radius = (1 - projection.fraction) * graph.radii[i] + projection.fraction * graph.radii[j]
+        worst = max(worst, projection.distance - radius)
+    return worst
+
+
+@dataclass(frozen=True)
+class SteerResult:
+    """Outcome of one :func:`steer` episode."""
+
+    success: bool
+    final_distance: float
+    sim_time: float
+    wall_time: float
+    cpu_time: float
+    max_escape: float
+    healthy: bool
+
+
+def steer(
+    physics: GuidewirePhysics, vessel: Vessel, target: str, rotation: float, speed: float,
+    tolerance: float = 0.001, time_limit: float = 12.0, control_period: float = 0.05,
+) -> SteerResult:
+    """Runs the scripted policy: rotate to ``rotation`` (rad), then insert at ``speed`` (m/s).
+
+    Stops at success (manifold distance of the tip to ``target`` <= ``tolerance``), when the
+    driver reaches its insertion limit and has stalled, or at ``time_limit`` s. ``wall_time``
+    and ``cpu_time`` (this thread's CPU time: the wall time a dedicated core would need, on a
+    shared machine) count only stepping and the policy, not the distance bookkeeping.
+    """
+    graph = vessel.centerline
+    to_target = graph.geodesic_from(graph.labels[target])
+    with physics.reset_context():
+        pass
+    substeps = max(1, round(control_period / physics.model.opt.timestep))
+    wall, cpu, worst, distance = 0.0, 0.0, 0.0, math.inf
+    while physics.data.time < time_limit:
+        start, start_cpu = time.perf_counter(), time.thread_time()
+        angle = physics.driver_targets()[1]
+        if abs(angle - rotation) > 1e-9:
+            physics.apply_increments(0.0, rotation - angle, control_period)
+        else:
+            physics.apply_increments(speed * control_period, 0.0, control_period)
+        physics.step(substeps)
+        wall += time.perf_counter() - start
+        cpu += time.thread_time() - start_cpu
+        if not physics.is_finite():
+            break
+        worst = max(worst, escape_depth(physics, vessel))
+        distance = graph.distance_along(physics.tip_position(), to_target)
+        if distance <= tolerance:
+            break
+    healthy = physics.is_finite() and not physics.warnings()
+    return SteerResult(
+        success=healthy and distance <= tolerance, final_distance=distance,
+        sim_time=float(physics.data.time), wall_time=wall, cpu_time=cpu,
+        max_escape=worst, healthy=healthy,
+    )

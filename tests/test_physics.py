@@ -1,0 +1,109 @@
+"""GuidewirePhysics: named SI accessors, driver commands, contact force, torque transfer."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from guidewire_helpers import write_tube_vessel
+
+from sim4endor.models import validation
+from sim4endor.models.scene import SceneConfig
+from sim4endor.physics import GuidewirePhysics
+from sim4endor.vessels import Vessel
+
+
+@pytest.fixture(scope="module")
+def tube(tmp_path_factory: pytest.TempPathFactory) -> Vessel:
+    return write_tube_vessel(tmp_path_factory.mktemp("vessels") / "tube")
+
+
+def _drive(physics: GuidewirePhysics, insertion: float, rotation: float, seconds: float) -> None:
+    physics.set_driver_targets(insertion, rotation)
+    physics.step(round(seconds / physics.model.opt.timestep))
+
+
+def test_accessors_have_si_shapes(tube: Vessel) -> None:
+    physics = GuidewirePhysics.from_vessel(tube)
+    points = physics.wire_points()
+    assert points.shape == (physics.num_wire_segments() + 1, 3)
+    np.testing.assert_allclose(points[-1], physics.tip_position())
+    length = np.linalg.norm(np.diff(points, axis=0), axis=1).sum()
+    assert length == pytest.approx(SceneConfig().wire.length, rel=1e-6)
+    assert physics.tip_velocity().shape == (3,)
+    assert physics.insertion_depth() == 0.0 and physics.rotation_angle() == 0.0
+    assert physics.wall_contact_force() == 0.0
+
+
+def test_insertion_moves_the_tip_and_reports_velocity(tube: Vessel) -> None:
+    physics = GuidewirePhysics.from_vessel(tube)
+    start = physics.tip_position()
+    physics.set_driver_targets(0.03, 0.0)
+    physics.step(40)
+    assert physics.tip_velocity()[0] > 0.01
+    physics.step(500)  # the force-limited servo pushes ~1 kg of mass-scaled wire
+    assert physics.insertion_depth() == pytest.approx(0.03, abs=5e-4)
+    assert physics.tip_position()[0] - start[0] == pytest.approx(0.03, abs=1e-3)
+    assert physics.is_finite() and not physics.warnings()
+
+
+def test_increments_are_limited_by_speed_and_range(tube: Vessel) -> None:
+    physics = GuidewirePhysics.from_vessel(tube)
+    v_ins, v_rot = physics.max_speeds()
+    applied = physics.apply_increments(1.0, -1.0, duration=0.05)
+    assert applied == pytest.approx((v_ins * 0.05, -v_rot * 0.05))
+    applied = physics.apply_increments(-1.0, 0.0, duration=0.05)
+    assert applied[0] == pytest.approx(-v_ins * 0.05)
+    applied = physics.apply_increments(-1.0, 0.0, duration=0.05)
+    assert applied[0] == 0.0  # insertion range starts at 0
+    with pytest.raises(ValueError, match="finite"):
+        physics.set_driver_targets(float("nan"), 0.0)
+
+
+def test_rotation_turns_the_tip_bend_direction(tube: Vessel) -> None:
+    physics = GuidewirePhysics.from_vessel(tube)
+    _drive(physics, 0.02, 0.0, 1.5)
+    before = validation.tip_bend_direction(physics)
+    _drive(physics, 0.02, math.pi / 2, 2.0)
+    after = validation.tip_bend_direction(physics)
+    turned = math.degrees((after - before + math.pi) % (2 * math.pi) - math.pi)
+    assert abs(turned) == pytest.approx(90.0, abs=10.0)
+    assert physics.rotation_angle() == pytest.approx(math.pi / 2, abs=0.02)
+
+
+def test_pushing_into_the_capped_end_gives_wall_force_and_no_escape(tube: Vessel) -> None:
+    physics = GuidewirePhysics.from_vessel(tube)
+    v_ins = physics.max_speeds()[0]
+    worst, force = 0.0, 0.0
+    while physics.data.time < 4.0:
+        physics.apply_increments(v_ins * 0.05, 0.0, 0.05)
+        physics.step(10)
+        worst = max(worst, validation.escape_depth(physics, tube))
+        force = max(force, physics.wall_contact_force())
+    assert physics.is_finite() and not physics.warnings()
+    assert 0.05 < force < 10.0  # the servo pushes with at most 0.5 N
+    assert worst <= SceneConfig().wire.radius
+    assert np.all(physics.wall_contact_forces() >= 0.0)
+
+
+def test_legacy_stepping_reports_the_same_contact_force(tube: Vessel) -> None:
+    forces = []
+    for legacy in (False, True):
+        physics = GuidewirePhysics.from_vessel(tube)
+        physics.legacy_step = legacy
+        _drive(physics, 0.07, 0.0, 3.0)
+        forces.append(physics.wall_contact_force())
+    assert forces[0] > 0.0
+    assert forces[1] == pytest.approx(forces[0], rel=0.2)
+
+
+def test_same_commands_give_identical_trajectories(tube: Vessel) -> None:
+    runs = []
+    for _ in range(2):
+        physics = GuidewirePhysics.from_vessel(tube)
+        for k in range(30):
+            physics.apply_increments(0.002, 0.1 * math.sin(k), 0.05)
+            physics.step(10)
+        runs.append(physics.data.qpos.copy())
+    np.testing.assert_array_equal(runs[0], runs[1])

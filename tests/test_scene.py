@@ -1,0 +1,114 @@
+"""Scene composition: vessel + sheath + driver + wire, placement, names, cache, errors."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+from guidewire_helpers import write_tube_vessel
+
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.models import constants as names
+from sim4endor.models import scene
+from sim4endor.models.driver import DriverConfig
+from sim4endor.models.guidewire import GuidewireConfig
+from sim4endor.vessels import Vessel
+
+
+@pytest.fixture(scope="module")
+def tube(tmp_path_factory: pytest.TempPathFactory) -> Vessel:
+    return write_tube_vessel(tmp_path_factory.mktemp("vessels") / "tube")
+
+
+def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
+    index = mujoco.mj_name2id(model, kind, name)
+    assert index >= 0, f"missing {name}"
+    return index
+
+
+def test_scene_compiles_with_named_elements_and_no_warnings(tube: Vessel) -> None:
+    model = scene.build_model(tube)
+    data = mujoco.MjData(model)
+    mujoco.mj_step(model, data, 20)
+    assert not any(w.number for w in data.warning)
+    for kind, name in (
+        (mujoco.mjtObj.mjOBJ_BODY, names.CARRIAGE_BODY),
+        (mujoco.mjtObj.mjOBJ_BODY, names.SHEATH_BODY),
+        (mujoco.mjtObj.mjOBJ_JOINT, names.INSERTION_JOINT),
+        (mujoco.mjtObj.mjOBJ_JOINT, names.ROTATION_JOINT),
+        (mujoco.mjtObj.mjOBJ_ACTUATOR, names.INSERTION_ACTUATOR),
+        (mujoco.mjtObj.mjOBJ_ACTUATOR, names.ROTATION_ACTUATOR),
+        (mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE),
+        (mujoco.mjtObj.mjOBJ_GEOM, names.VESSEL_PREFIX + "wall_000"),  # the STL hull
+        (mujoco.mjtObj.mjOBJ_SITE, names.VESSEL_PREFIX + "target_A"),
+    ):
+        _id(model, kind, name)
+    assert model.opt.solver == mujoco.mjtSolver.mjSOL_NEWTON
+    assert model.opt.timestep == pytest.approx(0.005)
+    assert np.allclose(model.opt.gravity, 0.0)
+
+
+def test_wire_starts_in_the_sheath_with_the_tip_just_inside_the_inlet(tube: Vessel) -> None:
+    config = scene.SceneConfig()
+    model = scene.build_model(tube, config)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    carriage = data.xpos[_id(model, mujoco.mjtObj.mjOBJ_BODY, names.CARRIAGE_BODY)]
+    back = config.driver.sheath_length(config.wire.length)
+    np.testing.assert_allclose(carriage, [-back, 0.0, 0.0], atol=1e-9)
+    tip = data.site_xpos[_id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE)]
+    assert 0.0 < tip[0] <= config.driver.initial_protrusion
+    assert tip[1] == pytest.approx(config.wire.tip_lateral_offset, rel=1e-6)  # bent 'up' (+y)
+
+
+def test_insertion_frame_points_along_the_inlet_with_y_up() -> None:
+    for direction in ([1.0, 0.0, 0.0], [0.3, -0.2, 0.9], [0.0, 1.0, 0.0]):
+        quat = scene.insertion_frame(np.array(direction))
+        mat = np.zeros(9)
+        mujoco.mju_quat2Mat(mat, quat)
+        frame = mat.reshape(3, 3)
+        np.testing.assert_allclose(frame[:, 0], np.array(direction) / np.linalg.norm(direction))
+        np.testing.assert_allclose(frame.T @ frame, np.eye(3), atol=1e-12)
+        assert frame[1, 1] >= 0 or abs(direction[1]) > 0.99
+
+
+def test_compiled_model_is_cached_and_copied(tube: Vessel) -> None:
+    config = scene.SceneConfig(timestep=0.004)
+    first = scene.build_model(tube, config)
+    hits = scene._compiled.cache_info().hits
+    second = scene.build_model(tube, config)
+    assert scene._compiled.cache_info().hits == hits + 1
+    assert first is not second and first.opt.timestep == second.opt.timestep == 0.004
+    first.geom_friction[:] = 0.0
+    assert scene.build_model(tube, config).geom_friction.max() > 0.0
+
+
+def test_config_for_vessel_sizes_wire_to_the_deepest_target(tube: Vessel) -> None:
+    config = scene.config_for_vessel(tube)
+    assert config.driver.max_insertion == pytest.approx(0.06 + 0.01)
+    assert config.wire.length == pytest.approx(0.07 + config.driver.initial_protrusion + 0.003)
+    scene.build_spec(tube, config)  # consistent: no error
+
+
+def test_too_wide_tip_is_refused_with_the_fix(tube: Vessel) -> None:
+    wire = GuidewireConfig(tip_length=0.006, tip_angle=math.radians(80))
+    with pytest.raises(Sim4EndoRError, match="tip_angle"):
+        scene.build_spec(tube, scene.SceneConfig(wire=wire))
+
+
+def test_too_short_wire_is_refused_with_the_fix() -> None:
+    config = scene.SceneConfig(wire=GuidewireConfig(length=0.05), driver=DriverConfig())
+    with pytest.raises(Sim4EndoRError, match="max_insertion"):
+        scene.build_spec(None, config)
+
+
+def test_vessel_meshes_resolve_from_any_working_directory(
+    tube: Vessel, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    config = dataclasses.replace(scene.SceneConfig(), timestep=0.003)
+    assert scene.build_model(tube, config).nmesh == 1
