@@ -116,6 +116,10 @@ class NavigationTask(base.Task):
         self._evaluation: StepEvaluation | None = None
         self._camera: dm_mujoco.MovableCamera | None = None
 
+    def reseed(self, seed: int) -> None:
+        """Replaces the task's random generator by one seeded with ``seed``."""
+        self._random = np.random.RandomState(seed)
+
     # ------------------------------------------------------------------------ anatomy
     @property
     def anatomy(self) -> Anatomy:
@@ -260,8 +264,8 @@ class NavigationTask(base.Task):
             "lumen_excess": ev.lumen_excess,
             "is_success": ev.success,
             "failure": ev.failure,
-            "insertion_command": self._insertion,
-            "rotation_command": self._rotation,
+            "insertion_command": float(self._insertion),
+            "rotation_command": float(self._rotation),
         }
 
     # -------------------------------------------------------------------- observation
