@@ -269,6 +269,25 @@ class NavigationTask(base.Task):
         }
 
     # -------------------------------------------------------------------- observation
+    def observation_spec(self, physics: control.Physics) -> Mapping[str, specs.Array]:
+        """Returns the spec of every configured entry without rendering or stepping."""
+        pixels = self.config.pixels
+        shapes = {
+            "tip_position": (3,),
+            "tip_velocity": (3,),
+            "target_position": (3,),
+            "wire_shape": (3 * len(physics.wire_points()),),
+            "last_action": (2,),
+            "insertion": (1,),
+            "rotation": (1,),
+            "manifold_distance": (1,),
+            "pixels": (pixels.height, pixels.width, 1),
+        }
+        return collections.OrderedDict(
+            (name, specs.Array(shapes[name], np.uint8 if name == "pixels" else np.float64, name))
+            for name in self.config.observations
+        )
+
     def get_observation(self, physics: control.Physics) -> Mapping[str, np.ndarray]:
         """Returns the configured observation entries, in order (SI units)."""
         obs: collections.OrderedDict[str, np.ndarray] = collections.OrderedDict()

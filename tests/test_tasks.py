@@ -1,0 +1,136 @@
+"""Navigation task: stepping, determinism, success and each failure state, observations."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from navigation_helpers import require_vessel
+
+from sim4endor import suite
+from sim4endor.tasks import InvalidActionError, TerminationConfig
+from sim4endor.tasks.anatomy import compile_anatomy
+from sim4endor.tasks.navigation import lumen_excess
+
+INSERT = np.array([1.0, 0.0])
+
+
+@pytest.fixture(autouse=True)
+def phantom() -> None:
+    require_vessel("simplified_phantom")
+
+
+def _run(env: suite.NavigationEnvironment, actions: np.ndarray) -> list:
+    steps = [env.reset()]
+    for action in actions:
+        steps.append(env.step(action))
+        if steps[-1].last():
+            break
+    return steps
+
+
+def test_reset_and_steps_are_finite() -> None:
+    env = suite.load("simplified_phantom", "task_a", {"random": 0})
+    for ts in _run(env, np.tile(INSERT, (5, 1))):
+        assert all(np.all(np.isfinite(v)) for v in ts.observation.values())
+        assert ts.reward is None or math.isfinite(ts.reward)
+    assert list(ts.observation) == ["tip_position", "tip_velocity"]
+
+
+def test_same_seed_and_actions_give_identical_trajectories() -> None:
+    actions = np.random.default_rng(3).uniform(-1, 1, size=(25, 2))
+    runs = [_run(suite.load("simplified_phantom", "task_b", {"random": 7}), actions)
+            for _ in range(2)]
+    for a, b in zip(*runs, strict=True):
+        assert a.reward == b.reward
+        for key in a.observation:
+            np.testing.assert_array_equal(a.observation[key], b.observation[key])
+
+
+def test_inserting_into_branch_a_succeeds_and_terminates() -> None:
+    env = suite.load("simplified_phantom", "task_a")
+    last = _run(env, np.tile(INSERT, (120, 1)))[-1]
+    info = env.task.step_info()
+    assert last.last() and last.discount == 0.0
+    assert info["is_success"] and info["failure"] == ""
+    assert info["distance"] <= 1e-3
+    assert last.reward == pytest.approx(100.0 + info["reward_distance"])
+
+
+@pytest.mark.parametrize(
+    ("termination", "action", "reason"),
+    [
+        (TerminationConfig(max_insertion=0.004), INSERT, "insertion_limit"),
+        (TerminationConfig(max_rotation=0.2), np.array([0.0, 1.0]), "rotation_limit"),
+        (TerminationConfig(max_wall_force=1e-4), INSERT, "wall_force"),
+    ],
+)
+def test_failure_states_terminate_with_the_penalty(
+    termination: TerminationConfig, action: np.ndarray, reason: str
+) -> None:
+    env = suite.load("simplified_phantom", "task_b", {"termination": termination})
+    last = _run(env, np.tile(action, (120, 1)))[-1]
+    info = env.task.step_info()
+    assert last.last() and last.discount == 0.0
+    assert info["failure"] == reason and not info["is_success"]
+    assert last.reward == pytest.approx(-100.0 + info["reward_distance"])
+
+
+def test_instability_is_a_failure_not_a_crash() -> None:
+    env = suite.load("simplified_phantom", "task_a")
+    first = env.reset()
+    env.physics.data.qvel[:] = np.nan
+    last = env.step(INSERT)
+    assert last.last() and last.discount == 0.0 and last.reward == -100.0
+    assert env.task.step_info()["failure"] == "instability"
+    np.testing.assert_array_equal(last.observation["tip_position"],
+                                  first.observation["tip_position"])
+    assert env.step(INSERT).first()  # the next step starts a new episode
+
+
+@pytest.mark.parametrize("bad", [[np.nan, 0.0], [0.0, np.inf], [1.0, 0.0, 0.0]])
+def test_invalid_actions_are_rejected_before_mujoco(bad: list[float]) -> None:
+    env = suite.load("simplified_phantom", "task_a")
+    env.reset()
+    ctrl = env.physics.data.ctrl.copy()
+    with pytest.raises(InvalidActionError):
+        env.step(np.array(bad))
+    np.testing.assert_array_equal(env.physics.data.ctrl, ctrl)
+
+
+def test_optional_observations_have_documented_shapes() -> None:
+    extras = ("target_position", "wire_shape", "last_action", "insertion", "rotation",
+              "manifold_distance")
+    env = suite.load("simplified_phantom", "task_a", {"observations": extras})
+    env.reset()
+    obs = env.step(INSERT).observation
+    n_points = len(env.physics.wire_points())
+    shapes = {k: v.shape for k, v in obs.items()}
+    spec = {k: v.shape for k, v in env.observation_spec().items()}
+    assert shapes == spec == {"tip_position": (3,), "tip_velocity": (3,), "target_position": (3,),
+                      "wire_shape": (3 * n_points,), "last_action": (2,), "insertion": (1,),
+                      "rotation": (1,), "manifold_distance": (1,)}
+    np.testing.assert_allclose(obs["target_position"], env.task.target_position)
+    np.testing.assert_allclose(obs["last_action"], INSERT)
+    assert obs["insertion"][0] > 0
+    assert obs["manifold_distance"][0] == pytest.approx(env.task.step_info()["manifold_distance"])
+
+
+def test_euclidean_reward_reports_both_distances() -> None:
+    env = suite.load("simplified_phantom", "task_b", {"reward": "euclidean"})
+    _run(env, np.tile(INSERT, (50, 1)))  # rotation 0 goes into branch A, the wrong one
+    info = env.task.step_info()
+    assert info["distance"] < info["manifold_distance"]
+
+
+def test_lumen_excess_is_negative_inside_and_positive_outside() -> None:
+    anatomy = compile_anatomy("simplified_phantom")
+    graph, vessel = anatomy.vessel.centerline, anatomy.vessel
+    mid = graph.nodes[len(graph.nodes) // 4]
+    radius = graph.radius_at(mid[None])[0]
+    assert lumen_excess(anatomy, mid) == pytest.approx(-radius)
+    normal = np.cross(vessel.inlet_direction, [0.0, 0.0, 1.0])
+    assert lumen_excess(anatomy, mid + 3 * radius * normal / np.linalg.norm(normal)) > 0
+    behind = vessel.inlet_position - 0.01 * vessel.inlet_direction
+    assert lumen_excess(anatomy, behind) == -math.inf
