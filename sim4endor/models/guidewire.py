@@ -291,4 +291,8 @@ def add_guidewire(spec: mujoco.MjSpec, parent: mujoco.MjsBody, config: Guidewire
         body.plugin.name = names.WIRE_PLUGIN
         body.plugin.active = True
         previous_heading, previous_length = heading, length
-    body.add_site(name=names.WIRE_TIP_SITE, pos=[previous_length, 0.0, 0.0])
+    # Hidden (site group 3) and wire-sized: the default 5 mm site would hide the tip.
+    body.add_site(
+        name=names.WIRE_TIP_SITE, pos=[previous_length, 0.0, 0.0], size=[config.radius, 0, 0],
+        group=3,
+    )
