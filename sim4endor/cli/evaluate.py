@@ -1,0 +1,39 @@
+"""``sim4endor evaluate RUN_DIR [--trials 10] [--json]``: the paper's metrics of a trained run."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Adds the ``evaluate`` subcommand."""
+    parser = subparsers.add_parser(
+        "evaluate",
+        help="evaluate a trained run's deterministic policy",
+        description=(
+            "Run the latest policy of RUN_DIR for --trials episodes and print success_rate, "
+            "mean_completion_time_s (simulated procedure time of successful episodes), "
+            "mean_path_length_m, spl and max_wall_force_n. Also writes RUN_DIR/evaluation.json."
+        ),
+    )
+    parser.add_argument("run_dir", type=Path, help="folder written by `sim4endor train --out`")
+    parser.add_argument("--trials", type=int, default=10, help="episodes (default: 10)")
+    parser.add_argument("--seed", type=int, help="evaluation seed (default: the run's)")
+    parser.add_argument("--json", action="store_true", help="print one JSON line")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Evaluates and prints the metrics."""
+    from sim4endor.rl.runs import evaluate_run
+
+    metrics = evaluate_run(args.run_dir, trials=args.trials, seed=args.seed)
+    if args.json:
+        print(json.dumps(metrics))  # noqa: T201
+    else:
+        width = max(len(key) for key in metrics)
+        for key, value in metrics.items():
+            print(f"{key:<{width}}  {'n/a' if value is None else value}")  # noqa: T201
+    return 0

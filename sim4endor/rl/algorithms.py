@@ -1,0 +1,138 @@
+"""Builds the policy, loss, target updater and optimiser of DDPG, SAC or PPO.
+
+The losses are TorchRL's (``DDPGLoss``, ``SACLoss``, ``ClipPPOLoss``); the target networks of
+DDPG and SAC are Polyak-averaged with ``SoftUpdate`` after every gradient step (the paper's
+"target update interval 1", τ = 0.005).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import torch
+from tensordict import TensorDictBase
+from tensordict.nn import TensorDictModuleBase, TensorDictSequential
+from torchrl.data import Composite, TensorSpec
+from torchrl.modules import AdditiveGaussianModule
+from torchrl.objectives import (
+    ClipPPOLoss,
+    DDPGLoss,
+    LossModule,
+    SACLoss,
+    SoftUpdate,
+    ValueEstimators,
+)
+from torchrl.objectives.value import ValueEstimatorBase
+
+from sim4endor.rl import networks
+from sim4endor.rl.config import TrainConfig
+
+
+@dataclasses.dataclass
+class Agent:
+    """The trainable pieces of one algorithm.
+
+    Attributes:
+        actor: the policy network; run it under ``ExplorationType.DETERMINISTIC`` to evaluate.
+        exploration_policy: what the collector runs (DDPG adds Gaussian noise to the actor).
+        loss: the TorchRL loss module (owns the critics and target parameters).
+        optimizer: Adam over the loss parameters, one parameter group per network.
+        target_updater: Polyak averaging of target networks (None for PPO).
+        advantage: GAE module (PPO only).
+    """
+
+    actor: TensorDictModuleBase
+    exploration_policy: TensorDictModuleBase
+    loss: LossModule
+    optimizer: torch.optim.Optimizer
+    target_updater: SoftUpdate | None
+    advantage: ValueEstimatorBase | None
+
+    def update(self, batch: TensorDictBase, max_grad_norm: float) -> dict[str, float]:
+        """One gradient step on ``batch``; returns the loss terms as floats."""
+        losses = self.loss(batch)
+        total = sum(value for key, value in losses.items() if key.startswith("loss_"))
+        self.optimizer.zero_grad()
+        total.backward()
+        for group in self.optimizer.param_groups:
+            torch.nn.utils.clip_grad_norm_(group["params"], max_grad_norm)
+        self.optimizer.step()
+        if self.target_updater is not None:
+            self.target_updater.step()
+        return {key: float(value.detach().mean()) for key, value in losses.items()}
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to resume: loss (networks + targets), optimiser, noise schedule."""
+        return {
+            "loss": self.loss.state_dict(),
+            "optimizer": self.optimizer.state_dict(),
+            "exploration": self.exploration_policy.state_dict(),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restores what :meth:`state_dict` returned."""
+        self.loss.load_state_dict(state["loss"])
+        self.optimizer.load_state_dict(state["optimizer"])
+        self.exploration_policy.load_state_dict(state["exploration"])
+
+
+def observation_dim(observation_spec: Composite) -> int:
+    """Size of the flat ``observation`` entry the networks read."""
+    return int(observation_spec[networks.OBSERVATION_KEY].shape[-1])
+
+
+def build_agent(config: TrainConfig, observation_spec: Composite, action_spec: TensorSpec) -> Agent:
+    """Returns the :class:`Agent` of ``config.algorithm`` for an environment's specs."""
+    obs_dim = observation_dim(observation_spec)
+    action_dim = int(action_spec.shape[-1])
+    net, optim = config.network, config.optim
+    if config.algorithm == "ddpg":
+        actor = networks.deterministic_actor(obs_dim, action_spec, net)
+        critic = networks.action_value(obs_dim, action_dim, net)
+        loss: LossModule = DDPGLoss(actor, critic, loss_function="l2", delay_actor=True)
+        # Constant σ: the paper uses a fixed exploration noise magnitude.
+        noise = config.exploration.noise_std
+        exploration: TensorDictModuleBase = TensorDictSequential(
+            actor,
+            AdditiveGaussianModule(spec=action_spec, sigma_init=noise, sigma_end=noise),
+        )
+        groups = [loss.actor_network_params, loss.value_network_params]
+    elif config.algorithm == "sac":
+        actor = networks.stochastic_actor(obs_dim, action_spec, net)
+        critic = networks.action_value(obs_dim, action_dim, net)
+        loss = SACLoss(
+            actor, critic, num_qvalue_nets=2, loss_function="l2", action_spec=action_spec
+        )
+        exploration = actor
+        groups = [loss.actor_network_params, loss.qvalue_network_params, [loss.log_alpha]]
+    else:
+        actor = networks.stochastic_actor(obs_dim, action_spec, net)
+        critic = networks.state_value(obs_dim, net)
+        loss = ClipPPOLoss(
+            actor,
+            critic,
+            clip_epsilon=config.ppo.clip_epsilon,
+            entropy_coeff=config.ppo.entropy_coef,
+            normalize_advantage=True,
+        )
+        exploration = actor
+        groups = [loss.actor_network_params, loss.critic_network_params]
+    if config.algorithm == "ppo":
+        loss.make_value_estimator(
+            ValueEstimators.GAE, gamma=optim.gamma, lmbda=config.ppo.gae_lambda
+        )
+    else:
+        loss.make_value_estimator(gamma=optim.gamma)
+    optimizer = torch.optim.Adam(
+        [{"params": list(_parameters(group))} for group in groups], lr=optim.lr
+    )
+    target_updater = None if config.algorithm == "ppo" else SoftUpdate(loss, tau=optim.tau)
+    advantage = loss.value_estimator if config.algorithm == "ppo" else None
+    return Agent(actor, exploration, loss, optimizer, target_updater, advantage)
+
+
+def _parameters(group: object) -> list[torch.Tensor]:
+    if isinstance(group, TensorDictBase):
+        return list(group.values(True, True))
+    return list(group)  # type: ignore[call-overload]

@@ -1,0 +1,240 @@
+"""The headless benchmark job: a grid of training runs, Table I and learning curves.
+
+A bench config (YAML) lists the rows (algorithm × reward), the tasks, the seeds and config
+overrides applied to every run. :func:`run_bench` trains every grid point into
+``OUT/runs/<algorithm>-<reward>-<domain>-<task>-s<seed>/`` with a local process pool (or on a
+Ray cluster), skipping runs that already finished and resuming interrupted ones, then writes
+``OUT/table.md``, ``OUT/figures/*.png`` (success rate and each reward term vs frames) and
+``OUT/results.md`` (table, figures, hardware and wall-clock), all generated, never typed.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import dataclasses
+import multiprocessing
+import os
+import platform
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+
+from sim4endor._atomic import atomic_write_text
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.rl import checkpoint
+from sim4endor.rl.config import ALGORITHMS, TrainConfig, apply_overrides, default_config
+from sim4endor.rl.envs import EnvFactory
+from sim4endor.rl.plots import learning_curve_figure, scalar_names
+from sim4endor.rl.runs import read_evaluation
+from sim4endor.rl.table import RunResult, markdown_table
+from sim4endor.rl.trainer import train
+
+Backend = Literal["local", "ray"]
+
+
+class BenchConfigError(Sim4EndoRError, ValueError):
+    """A bench config file is malformed; the message names the field."""
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchConfig:
+    """A benchmark grid.
+
+    Attributes:
+        rows: (algorithm, reward) pairs, e.g. the paper's four Table I rows.
+        tasks: (domain, task) pairs.
+        seeds: training seeds of every (row, task).
+        overrides: ``section.field=value`` strings applied to every run's config.
+        workers: parallel runs of the local process pool.
+    """
+
+    rows: tuple[tuple[str, str], ...]
+    tasks: tuple[tuple[str, str], ...]
+    seeds: tuple[int, ...] = (0, 1, 2)
+    overrides: tuple[str, ...] = ()
+    workers: int = 2
+
+
+def load_bench_config(path: Path) -> BenchConfig:
+    """Reads a bench YAML file (keys: rows, tasks, seeds, overrides, workers)."""
+    try:
+        data = yaml.safe_load(Path(path).read_text()) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise BenchConfigError(f"Cannot read bench config {path}: {exc}") from exc
+    return bench_config_from_dict(data, source=str(path))
+
+
+def bench_config_from_dict(data: Mapping[str, Any], *, source: str = "bench") -> BenchConfig:
+    """Validates and converts a bench mapping (see :class:`BenchConfig`)."""
+    known = {f.name for f in dataclasses.fields(BenchConfig)}
+    unknown = set(data) - known
+    if unknown:
+        raise BenchConfigError(f"{source}: unknown keys {sorted(unknown)}; valid: {sorted(known)}")
+    try:
+        rows = tuple((str(r["algorithm"]), str(r["reward"])) for r in data["rows"])
+        tasks = tuple((str(t["domain"]), str(t["task"])) for t in data["tasks"])
+    except (KeyError, TypeError) as exc:
+        raise BenchConfigError(
+            f"{source}: 'rows' must list {{algorithm, reward}} and 'tasks' {{domain, task}} "
+            f"mappings ({exc})."
+        ) from exc
+    for algorithm, _ in rows:
+        if algorithm not in ALGORITHMS:
+            raise BenchConfigError(f"{source}: unknown algorithm {algorithm!r}; use {ALGORITHMS}.")
+    return BenchConfig(
+        rows=rows,
+        tasks=tasks,
+        seeds=tuple(int(s) for s in data.get("seeds", (0, 1, 2))),
+        overrides=tuple(str(o) for o in data.get("overrides", ())),
+        workers=int(data.get("workers", 2)),
+    )
+
+
+def plan(bench: BenchConfig) -> list[tuple[str, TrainConfig]]:
+    """Every grid point as (run folder name, config), in a stable order."""
+    runs = []
+    for algorithm, reward in bench.rows:
+        for domain, task in bench.tasks:
+            for seed in bench.seeds:
+                point = [
+                    f"env.domain={domain}",
+                    f"env.task={task}",
+                    f"env.reward={reward}",
+                    f"seed={seed}",
+                ]
+                config = apply_overrides(default_config(algorithm), [*bench.overrides, *point])
+                runs.append((f"{algorithm}-{reward}-{domain}-{task}-s{seed}", config))
+    return runs
+
+
+def _train_one(config: TrainConfig, run_dir: Path, make_env: EnvFactory | None) -> str:
+    train(config, run_dir, make_env=make_env, progress=False)
+    return str(run_dir)
+
+
+def _finished(config: TrainConfig, run_dir: Path) -> bool:
+    return (
+        read_evaluation(run_dir) is not None
+        and checkpoint.load_progress(run_dir).frames >= config.collector.total_frames
+    )
+
+
+def run_bench(
+    bench: BenchConfig,
+    out_dir: Path,
+    *,
+    backend: Backend = "local",
+    make_env: EnvFactory | None = None,
+) -> Path:
+    """Trains the grid into ``out_dir`` and writes the table, figures and ``results.md``.
+
+    Args:
+        bench: the grid.
+        out_dir: output folder; rerunning skips finished runs and resumes interrupted ones.
+        backend: ``local`` (process pool of ``bench.workers``; 1 = in this process) or ``ray``
+            (one task per run on the cluster ``ray.init()`` connects to, e.g. RAY_ADDRESS).
+        make_env: ``seed -> env`` factory (picklable); defaults to each run's sim4endor task.
+
+    Returns:
+        The path of ``results.md``.
+    """
+    out_dir = Path(out_dir)
+    start = time.monotonic()
+    todo = [
+        (config, out_dir / "runs" / name)
+        for name, config in plan(bench)
+        if not _finished(config, out_dir / "runs" / name)
+    ]
+    if backend == "ray":
+        _run_ray(todo, make_env)
+    elif bench.workers <= 1:
+        for config, run_dir in todo:
+            _train_one(config, run_dir, make_env)
+    else:
+        context = multiprocessing.get_context("spawn")
+        with concurrent.futures.ProcessPoolExecutor(bench.workers, mp_context=context) as pool:
+            futures = [pool.submit(_train_one, c, d, make_env) for c, d in todo]
+            for future in concurrent.futures.as_completed(futures):
+                future.result()
+    return write_report(bench, out_dir, time.monotonic() - start, backend)
+
+
+def _run_ray(todo: Sequence[tuple[TrainConfig, Path]], make_env: EnvFactory | None) -> None:
+    try:
+        import ray
+    except ImportError as exc:
+        raise Sim4EndoRError(
+            "--backend ray needs Ray: pip install 'sim4endor[ray]' (or use the local backend)."
+        ) from exc
+    ray.init(ignore_reinit_error=True)
+    remote = ray.remote(num_cpus=1)(_train_one)
+    ray.get([remote.remote(config, run_dir, make_env) for config, run_dir in todo])
+
+
+def write_report(bench: BenchConfig, out_dir: Path, wall_clock_s: float, backend: str) -> Path:
+    """Writes ``table.md``, the learning-curve figures and ``results.md`` for ``bench``."""
+    runs = [(config, out_dir / "runs" / name) for name, config in plan(bench)]
+    results, clocks = [], []
+    for config, run_dir in runs:
+        evaluation = read_evaluation(run_dir)
+        if evaluation is not None:
+            results.append(RunResult.from_run(config, evaluation))
+            clocks.append(float(evaluation.get("train_wall_clock_s", 0.0)))
+    if not results:
+        raise Sim4EndoRError(f"No run of the bench under {out_dir} has an evaluation yet.")
+    table = markdown_table(results)
+    atomic_write_text(out_dir / "table.md", table)
+    figures = []
+    for domain, task in bench.tasks:
+        task_runs = [(c, d) for c, d in runs if (c.env.domain, c.env.task) == (domain, task)]
+        names = ["eval/success_rate", *scalar_names([d for _, d in task_runs], "train/reward")]
+        for name in names:
+            slug = name.replace("/", "_")
+            path = out_dir / "figures" / f"{domain}-{task}-{slug}.png"
+            learning_curve_figure(task_runs, name, f"{domain} {task}: {name}", path)
+            figures.append(path.relative_to(out_dir))
+    text = _results_markdown(bench, runs[0][0], table, figures, clocks, wall_clock_s, backend)
+    atomic_write_text(out_dir / "results.md", text)
+    return out_dir / "results.md"
+
+
+def _results_markdown(
+    bench: BenchConfig,
+    example: TrainConfig,
+    table: str,
+    figures: Sequence[Path],
+    clocks: Sequence[float],
+    wall_clock_s: float,
+    backend: str,
+) -> str:
+    import torch
+
+    mean_run = sum(clocks) / len(clocks) if clocks else 0.0
+    lines = [
+        "# Results (generated by `sim4endor bench`; do not edit by hand)",
+        "",
+        f"Grid: {len(bench.rows)} rows × {len(bench.tasks)} tasks × {len(bench.seeds)} seeds "
+        f"(seeds {list(bench.seeds)}), {example.collector.total_frames} frames per run, "
+        f"{example.eval.trials} evaluation trials per seed. Overrides: {list(bench.overrides)}.",
+        "",
+        table,
+        "Success rate: successful evaluation episodes / trials, pooled over seeds. Time: mean "
+        "simulated procedure time of the successful episodes.",
+        "",
+        "## Hardware and wall-clock",
+        "",
+        f"- machine: {platform.machine()}, {os.cpu_count()} logical CPUs, "
+        f"{platform.processor() or platform.platform()}; torch {torch.__version__} (CPU)",
+        f"- backend: {backend}, {bench.workers} parallel runs",
+        f"- mean training wall-clock per run: {mean_run / 60:.1f} min "
+        f"({len(clocks)} runs; includes periodic evaluation)",
+        f"- this invocation: {wall_clock_s / 60:.1f} min (finished runs are skipped on reruns)",
+        "",
+        "## Learning curves (mean ± std over seeds)",
+        "",
+    ]
+    lines += [f"![{path.stem}]({path.as_posix()})" for path in figures]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,307 @@
+"""Typed training configuration with the paper's hyper-parameters as defaults.
+
+The paper (Implementation Details) trains with a target smoothing coefficient τ = 0.005, the
+target network updated every optimisation step, learning rate 1e-4, discount γ = 0.99, a
+replay buffer of 1e6 transitions, mini-batches of 100, exploration noise 0.1, 2000 initial
+random steps ("sampling performed every 2000 steps", read here as the warm-up before learning
+starts), 10 evaluation trials and 100k environment steps. Those are the defaults below; every
+field can be overridden with a ``section.field=value`` string (see :func:`apply_overrides`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+
+from sim4endor.errors import Sim4EndoRError
+
+Algorithm = Literal["ddpg", "sac", "ppo"]
+ALGORITHMS: tuple[str, ...] = ("ddpg", "sac", "ppo")
+
+
+class ConfigError(Sim4EndoRError, ValueError):
+    """A configuration file or override names an unknown field or holds a bad value."""
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvConfig:
+    """Which environment to train on.
+
+    Attributes:
+        domain: suite domain, e.g. ``simplified_phantom``.
+        task: task name within the domain, e.g. ``task_a``.
+        reward: distance used by the progress reward: geodesic (``manifold``) or ``euclidean``.
+        num_envs: environments stepped per collector (>1 uses one worker process each).
+    """
+
+    domain: str = "simplified_phantom"
+    task: str = "task_a"
+    reward: Literal["manifold", "euclidean"] = "manifold"
+    num_envs: int = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class CollectorConfig:
+    """Data collection budget.
+
+    Attributes:
+        total_frames: environment steps of the whole run (paper: 100k).
+        frames_per_batch: steps collected between two rounds of optimisation.
+        init_random_frames: uniformly random steps before learning starts (off-policy only).
+    """
+
+    total_frames: int = 100_000
+    frames_per_batch: int = 1_000
+    init_random_frames: int = 2_000
+
+
+@dataclasses.dataclass(frozen=True)
+class OptimConfig:
+    """Optimisation hyper-parameters.
+
+    Attributes:
+        lr: Adam learning rate of every network (paper: 1e-4).
+        gamma: discount factor (paper: 0.99).
+        batch_size: transitions per gradient step (paper: 100).
+        updates_per_batch: gradient steps per collected batch (off-policy; 0 = one per frame).
+        tau: target smoothing coefficient, applied after every gradient step (paper: 0.005).
+        max_grad_norm: gradient clipping threshold.
+    """
+
+    lr: float = 1e-4
+    gamma: float = 0.99
+    batch_size: int = 100
+    updates_per_batch: int = 0
+    tau: float = 0.005
+    max_grad_norm: float = 10.0
+
+
+@dataclasses.dataclass(frozen=True)
+class ReplayConfig:
+    """Replay buffer (off-policy algorithms).
+
+    Attributes:
+        size: capacity in transitions (paper: 1e6).
+    """
+
+    size: int = 1_000_000
+
+
+@dataclasses.dataclass(frozen=True)
+class NetworkConfig:
+    """Actor and critic multilayer perceptrons.
+
+    Attributes:
+        hidden_sizes: width of each hidden layer.
+        activation: ``relu`` or ``tanh``.
+    """
+
+    hidden_sizes: tuple[int, ...] = (256, 256)
+    activation: Literal["relu", "tanh"] = "relu"
+
+
+@dataclasses.dataclass(frozen=True)
+class ExplorationConfig:
+    """DDPG exploration noise.
+
+    Attributes:
+        noise_std: standard deviation of the Gaussian added to the normalised action (paper: 0.1).
+    """
+
+    noise_std: float = 0.1
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOConfig:
+    """PPO-specific settings (ignored by DDPG and SAC).
+
+    Attributes:
+        clip_epsilon: ratio clipping.
+        epochs: passes over each collected batch.
+        minibatch_size: transitions per PPO gradient step.
+        gae_lambda: GAE λ.
+        entropy_coef: entropy bonus weight.
+    """
+
+    clip_epsilon: float = 0.2
+    epochs: int = 10
+    minibatch_size: int = 100
+    gae_lambda: float = 0.95
+    entropy_coef: float = 1e-3
+
+
+@dataclasses.dataclass(frozen=True)
+class EvalConfig:
+    """Periodic evaluation with the deterministic policy.
+
+    Attributes:
+        interval_frames: evaluate every this many collected frames (0 = only at the end).
+        trials: episodes per evaluation (paper: 10).
+        max_steps: step cap of one evaluation episode (the task's own time limit also applies).
+    """
+
+    interval_frames: int = 10_000
+    trials: int = 10
+    max_steps: int = 1_000
+
+
+@dataclasses.dataclass(frozen=True)
+class LoggerConfig:
+    """TorchRL logger.
+
+    Attributes:
+        backend: ``csv`` (default), ``tensorboard`` (needs the ``tensorboard`` extra) or ``none``.
+    """
+
+    backend: Literal["csv", "tensorboard", "none"] = "csv"
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    """Everything one training run needs; saved as ``config.yaml`` beside its checkpoints.
+
+    Attributes:
+        algorithm: ``ddpg``, ``sac`` or ``ppo``.
+        seed: seeds torch, the environments and the replay buffer sampler.
+        checkpoint_interval_frames: save a resumable checkpoint every this many frames.
+        torch_threads: intra-op threads of torch; the networks are small, so one thread is
+            fastest and leaves the other cores to the environment workers.
+    """
+
+    algorithm: Algorithm = "ddpg"
+    seed: int = 0
+    torch_threads: int = 1
+    checkpoint_interval_frames: int = 10_000
+    env: EnvConfig = EnvConfig()
+    collector: CollectorConfig = CollectorConfig()
+    optim: OptimConfig = OptimConfig()
+    replay: ReplayConfig = ReplayConfig()
+    network: NetworkConfig = NetworkConfig()
+    exploration: ExplorationConfig = ExplorationConfig()
+    ppo: PPOConfig = PPOConfig()
+    eval: EvalConfig = EvalConfig()
+    logger: LoggerConfig = LoggerConfig()
+
+
+def default_config(algorithm: str) -> TrainConfig:
+    """Returns the paper's defaults for ``algorithm``.
+
+    PPO is on-policy: it collects 2048-step batches (no random warm-up, no replay) and
+    optimises each one for ``ppo.epochs`` passes.
+    """
+    if algorithm not in ALGORITHMS:
+        raise ConfigError(f"Unknown algorithm {algorithm!r}; choose one of {list(ALGORITHMS)}.")
+    config = TrainConfig(algorithm=typing.cast(Algorithm, algorithm))
+    if algorithm == "ppo":
+        config = dataclasses.replace(
+            config, collector=CollectorConfig(frames_per_batch=2_048, init_random_frames=0)
+        )
+    return config
+
+
+def to_dict(config: TrainConfig) -> dict[str, Any]:
+    """Returns ``config`` as plain nested dicts/lists (YAML/JSON friendly)."""
+    return _plain(dataclasses.asdict(config))
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, tuple | list):
+        return [_plain(v) for v in value]
+    return value
+
+
+def from_dict(data: Mapping[str, Any], *, source: str = "config") -> TrainConfig:
+    """Builds a :class:`TrainConfig` from nested dicts; missing fields keep their defaults.
+
+    The algorithm's defaults (:func:`default_config`) are the base, so a file need only list
+    what it changes.
+
+    Raises:
+        ConfigError: on an unknown section or field, naming the valid ones.
+    """
+    algorithm = str(data.get("algorithm", "ddpg"))
+    return _merge(default_config(algorithm), data, source)
+
+
+def _merge(obj: Any, data: Mapping[str, Any], where: str) -> Any:
+    fields = {f.name: f for f in dataclasses.fields(obj)}
+    hints = typing.get_type_hints(type(obj))
+    changes: dict[str, Any] = {}
+    for key, value in data.items():
+        if key not in fields:
+            raise ConfigError(
+                f"{where}: unknown field {key!r}; valid fields are {sorted(fields)}."
+            )
+        current = getattr(obj, key)
+        if dataclasses.is_dataclass(current):
+            if not isinstance(value, Mapping):
+                raise ConfigError(f"{where}: {key!r} must be a mapping of its fields.")
+            changes[key] = _merge(current, value, f"{where}.{key}")
+        else:
+            changes[key] = _coerce(value, hints[key], f"{where}.{key}")
+    return dataclasses.replace(obj, **changes)
+
+
+def _coerce(value: Any, hint: Any, where: str) -> Any:
+    origin = typing.get_origin(hint)
+    if origin is Literal:
+        if value not in typing.get_args(hint):
+            raise ConfigError(f"{where}={value!r}; choose one of {list(typing.get_args(hint))}.")
+        return value
+    if origin is tuple:
+        if not isinstance(value, list | tuple):
+            raise ConfigError(f"{where} must be a list, got {value!r}.")
+        return tuple(int(v) for v in value)
+    try:
+        if hint is bool:
+            return bool(value)
+        if hint is int and not (isinstance(value, float) and not value.is_integer()):
+            return int(value)
+        if hint is float:
+            return float(value)
+        if hint is str:
+            return str(value)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{where}: cannot read {value!r} as {hint.__name__}.") from exc
+    raise ConfigError(f"{where}: cannot read {value!r} as {hint}.")
+
+
+def load_config(path: Path, overrides: Iterable[str] = ()) -> TrainConfig:
+    """Reads a YAML config file and applies ``section.field=value`` overrides."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"Cannot read config file {path}: {exc}") from exc
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{path}: expected a mapping of config sections at the top level.")
+    return apply_overrides(from_dict(data, source=str(path)), overrides)
+
+
+def apply_overrides(config: TrainConfig, overrides: Iterable[str]) -> TrainConfig:
+    """Applies ``section.field=value`` strings (values parsed as YAML, e.g. ``optim.lr=3e-4``)."""
+    data: dict[str, Any] = {}
+    for item in overrides:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"Override {item!r} is not of the form section.field=value.")
+        node = data
+        *parents, leaf = key.strip().split(".")
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = yaml.safe_load(raw)
+    return typing.cast(TrainConfig, _merge(config, data, "override"))
+
+
+def save_config(config: TrainConfig, path: Path) -> None:
+    """Writes ``config`` as YAML, atomically."""
+    from sim4endor._atomic import atomic_write_text
+
+    atomic_write_text(Path(path), yaml.safe_dump(to_dict(config), sort_keys=False))

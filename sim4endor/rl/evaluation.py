@@ -1,0 +1,107 @@
+"""Runs a policy deterministically for a number of episodes and records :class:`Episode` s.
+
+The sim4endor TorchRL environments (:func:`sim4endor.envs.make_torchrl_env`) report, beside
+each step's ``observation`` (whose first three entries are the tip position in m), whether
+the target was reached (``is_success``), the wire–wall contact force (``wall_force``, N) and
+the geodesic distance from the tip to the target (``manifold_distance``, m); one step lasts
+the task's control period (``ActionConfig.control_timestep``, 0.05 s by default).
+:class:`EpisodeKeys` names those entries. An environment that lacks one (e.g. a generic
+control task used in tests) gives neutral values: no success, zero force, zero path lengths.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import torch
+from tensordict import TensorDictBase
+from tensordict.nn import TensorDictModuleBase
+from torchrl.envs import EnvBase, ExplorationType, set_exploration_type
+
+from sim4endor.rl.metrics import Episode
+
+#: Control period of the sim4endor tasks with their default action settings (20 Hz).
+DEFAULT_CONTROL_TIMESTEP_S = 0.05
+
+
+@dataclasses.dataclass(frozen=True)
+class EpisodeKeys:
+    """Where the metrics find what they need in a rollout.
+
+    Attributes:
+        tip_position: entry whose ``tip_slice`` holds the tip position (3,) in m.
+        tip_slice: (start, stop) of the tip position within that entry.
+        success: bool entry, True on the step that reached the target.
+        wall_force: wire–wall contact force in N.
+        distance: distance from the tip to the target along the centerline in m.
+        control_timestep_s: simulated seconds per step (completion time = steps × this).
+    """
+
+    tip_position: str = "observation"
+    tip_slice: tuple[int, int] = (0, 3)
+    success: str = "is_success"
+    wall_force: str = "wall_force"
+    distance: str = "manifold_distance"
+    control_timestep_s: float = DEFAULT_CONTROL_TIMESTEP_S
+
+
+def rollout_episodes(
+    env: EnvBase,
+    policy: TensorDictModuleBase,
+    *,
+    trials: int,
+    max_steps: int,
+    seed: int,
+    keys: EpisodeKeys = EpisodeKeys(),
+) -> list[Episode]:
+    """Runs ``trials`` deterministic episodes of ``policy`` (its mode, no exploration noise).
+
+    The env is reseeded with ``seed`` first, so two calls see the same start states.
+    """
+    env.set_seed(seed)
+    episodes = []
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        for _ in range(trials):
+            rollout = env.rollout(max_steps, policy, break_when_any_done=True)
+            episodes.append(episode_from_rollout(rollout, keys))
+    return episodes
+
+
+def episode_from_rollout(rollout: TensorDictBase, keys: EpisodeKeys = EpisodeKeys()) -> Episode:
+    """Turns one episode's rollout tensordict (time along dim 0) into an :class:`Episode`.
+
+    The shortest path is the distance to the target after the first step plus the tip's
+    first displacement (the reset state carries no distance; the first step is short).
+    """
+    nxt = rollout["next"]
+    steps = rollout.shape[0]
+    present = set(nxt.keys())
+    if keys.tip_position in present:
+        lo, hi = keys.tip_slice
+        tips = torch.cat([rollout[keys.tip_position][:1], nxt[keys.tip_position]])[:, lo:hi]
+        tips_np = tips.double().numpy()
+    else:
+        tips_np = np.zeros((steps + 1, 3))
+    success = bool(nxt[keys.success].any()) if keys.success in present else False
+    forces = nxt[keys.wall_force].reshape(-1).numpy() if keys.wall_force in present else np.zeros(0)
+    shortest = 0.0
+    if keys.distance in present:
+        first_move = float(np.linalg.norm(tips_np[1] - tips_np[0]))
+        shortest = float(nxt[keys.distance][0]) + first_move
+    return Episode(
+        tip_positions=tips_np,
+        success=success,
+        duration_s=steps * keys.control_timestep_s,
+        wall_forces=forces,
+        shortest_path_m=shortest,
+        episode_return=float(nxt["reward"].sum()),
+    )
+
+
+def success_fraction(done_steps: TensorDictBase, keys: EpisodeKeys = EpisodeKeys()) -> float | None:
+    """Fraction of finished episodes in ``done_steps`` (the ``next`` entries of done steps)
+    that succeeded; None when the env does not report success."""
+    if keys.success not in done_steps.keys() or done_steps.numel() == 0:
+        return None
+    return float(done_steps[keys.success].float().mean())

@@ -1,0 +1,136 @@
+"""Exporting a trained actor for a physical robot driver (TorchScript, optionally ONNX).
+
+Contract of the exported policy:
+
+* input: ``observation``, float32, shape ``(6,)`` or ``(batch, 6)``:
+  ``[p_x, p_y, p_z, v_x, v_y, v_z]`` = the guidewire tip position in m and its velocity in m/s,
+  both in the vessel model's frame (the task's default state, paper: s_t = [p_t, v_t]);
+* output: float32, shape ``(2,)`` or ``(batch, 2)``: ``[Δd, Δθ]`` normalised to [-1, 1]. The
+  driver multiplies them by the task's ``ActionConfig.max_insertion_step`` (m, positive
+  inserts) and ``max_rotation_step`` (rad) and applies them once per control period
+  (``control_timestep``, 0.05 s by default).
+
+The exported action is the policy's deterministic action (DDPG: the actor's output; SAC and
+PPO: the tanh-normal's deterministic sample), exactly what ``sim4endor evaluate`` runs.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import torch
+from torch import nn
+from torchrl.modules import TanhNormal
+
+from sim4endor._atomic import atomic_write_text
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.rl.algorithms import Agent
+from sim4endor.rl.config import TrainConfig
+from sim4endor.rl.envs import EnvFactory
+from sim4endor.rl.runs import load_agent
+
+
+class _TanhPolicy(nn.Module):
+    """DDPG: the actor's MLP followed by TanhModule's squashing into [low, high]."""
+
+    low: torch.Tensor
+    high: torch.Tensor
+
+    def __init__(self, body: nn.Module, low: torch.Tensor, high: torch.Tensor) -> None:
+        super().__init__()
+        self.body = body
+        self.register_buffer("low", low.clone())
+        self.register_buffer("high", high.clone())
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        squashed = self.body(observation).tanh()
+        return self.low + (self.high - self.low) * (squashed + 1) / 2
+
+
+class _TanhNormalPolicy(nn.Module):
+    """SAC/PPO: the deterministic sample of the actor's tanh-normal distribution."""
+
+    low: torch.Tensor
+    high: torch.Tensor
+
+    def __init__(self, body: nn.Module, low: torch.Tensor, high: torch.Tensor) -> None:
+        super().__init__()
+        self.body = body
+        self.register_buffer("low", low.clone())
+        self.register_buffer("high", high.clone())
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        loc, scale = self.body(observation)
+        return TanhNormal(loc, scale, low=self.low, high=self.high).deterministic_sample
+
+
+def deterministic_policy(config: TrainConfig, agent: Agent) -> nn.Module:
+    """Returns a plain ``observation -> action`` module equal to the agent's evaluation policy."""
+    actor = agent.actor
+    if config.algorithm == "ddpg":
+        mlp_module, tanh = actor[0], actor[1]
+        return _TanhPolicy(mlp_module.module, tanh.action_low, tanh.action_high).eval()
+    params_module = actor.module[0]
+    space = actor.spec["action"].space
+    return _TanhNormalPolicy(params_module.module, space.low, space.high).eval()
+
+
+def export_policy(
+    run_dir: Path,
+    out_dir: Path,
+    *,
+    onnx: bool = False,
+    make_env: EnvFactory | None = None,
+) -> list[Path]:
+    """Writes ``policy.pt`` (TorchScript), ``policy.json`` (contract), optionally ONNX.
+
+    Args:
+        run_dir: a training run folder.
+        out_dir: folder for the exported files.
+        onnx: also export ONNX (needs the ``onnx`` and ``onnxscript`` packages).
+        make_env: ``seed -> env`` factory; defaults to the run's task (read for the specs).
+
+    Returns:
+        The written paths.
+    """
+    config, agent = load_agent(run_dir, make_env)
+    policy = deterministic_policy(config, agent)
+    obs_dim = next(policy.body.parameters()).shape[-1]  # type: ignore[union-attr]
+    example = torch.zeros(1, obs_dim)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with torch.no_grad():
+        scripted = torch.jit.trace(policy, (example,))
+    script_path = out_dir / "policy.pt"
+    tmp = script_path.with_name(".policy.pt.tmp")
+    scripted.save(str(tmp))
+    tmp.replace(script_path)
+    contract = {
+        "algorithm": config.algorithm,
+        "domain": config.env.domain,
+        "task": config.env.task,
+        "input": "observation float32 (..., 6): tip position [m] (3), tip velocity [m/s] (3)",
+        "output": "action float32 (..., 2): [delta_insertion, delta_rotation] in [-1, 1]",
+        "scaling": "multiply by ActionConfig.max_insertion_step [m] and max_rotation_step [rad]",
+    }
+    paths = [script_path, out_dir / "policy.json"]
+    atomic_write_text(paths[1], json.dumps(contract, indent=2) + "\n")
+    if onnx:
+        paths.append(_export_onnx(policy, example, out_dir / "policy.onnx"))
+    return paths
+
+
+def _export_onnx(policy: nn.Module, example: torch.Tensor, path: Path) -> Path:
+    try:
+        import onnx  # noqa: F401
+    except ImportError as exc:
+        raise Sim4EndoRError(
+            "ONNX export needs the onnx and onnxscript packages (pip install onnx onnxscript); "
+            "the TorchScript policy.pt was written."
+        ) from exc
+    torch.onnx.export(
+        policy, (example,), str(path), input_names=["observation"], output_names=["action"],
+        dynamic_axes={"observation": {0: "batch"}, "action": {0: "batch"}},
+    )
+    return path

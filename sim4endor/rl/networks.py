@@ -1,0 +1,76 @@
+"""Actor and critic networks for DDPG, SAC and PPO, as TensorDict modules.
+
+Every network reads the flat ``observation`` entry (the task's state: tip position in m and
+tip velocity in m/s by default) and, for critics, the normalised ``action`` in [-1, 1]. The
+actors end in a tanh so their output always lies inside the action spec's bounds.
+"""
+
+from __future__ import annotations
+
+from tensordict.nn import NormalParamExtractor, TensorDictModule, TensorDictSequential
+from torch import nn
+from torchrl.data import TensorSpec
+from torchrl.modules import MLP, ProbabilisticActor, TanhModule, TanhNormal, ValueOperator
+
+from sim4endor.rl.config import NetworkConfig
+
+OBSERVATION_KEY = "observation"
+ACTION_KEY = "action"
+
+_ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh}
+
+
+def mlp(in_features: int, out_features: int, config: NetworkConfig) -> MLP:
+    """Returns an MLP with ``config``'s hidden sizes and activation."""
+    return MLP(
+        in_features=in_features,
+        out_features=out_features,
+        num_cells=list(config.hidden_sizes),
+        activation_class=_ACTIVATIONS[config.activation],
+    )
+
+
+def deterministic_actor(
+    obs_dim: int, action_spec: TensorSpec, config: NetworkConfig
+) -> TensorDictSequential:
+    """DDPG actor: observation -> tanh-squashed action inside ``action_spec``."""
+    action_dim = int(action_spec.shape[-1])
+    return TensorDictSequential(
+        TensorDictModule(
+            mlp(obs_dim, action_dim, config), in_keys=[OBSERVATION_KEY], out_keys=["param"]
+        ),
+        TanhModule(in_keys=["param"], out_keys=[ACTION_KEY], spec=action_spec),
+    )
+
+
+def stochastic_actor(
+    obs_dim: int, action_spec: TensorSpec, config: NetworkConfig
+) -> ProbabilisticActor:
+    """SAC/PPO actor: a tanh-normal policy; its mode is the deterministic evaluation action."""
+    action_dim = int(action_spec.shape[-1])
+    body = nn.Sequential(mlp(obs_dim, 2 * action_dim, config), NormalParamExtractor())
+    module = TensorDictModule(body, in_keys=[OBSERVATION_KEY], out_keys=["loc", "scale"])
+    space = action_spec.space
+    return ProbabilisticActor(
+        module,
+        in_keys=["loc", "scale"],
+        out_keys=[ACTION_KEY],
+        spec=action_spec,
+        distribution_class=TanhNormal,
+        distribution_kwargs={"low": space.low, "high": space.high},
+        return_log_prob=True,
+    )
+
+
+def action_value(obs_dim: int, action_dim: int, config: NetworkConfig) -> ValueOperator:
+    """Q(s, a) critic of DDPG and SAC."""
+    # torchrl's MLP concatenates several inputs itself.
+    return ValueOperator(
+        mlp(obs_dim + action_dim, 1, config), in_keys=[OBSERVATION_KEY, ACTION_KEY]
+    )
+
+
+def state_value(obs_dim: int, config: NetworkConfig) -> ValueOperator:
+    """V(s) critic of PPO."""
+    return ValueOperator(mlp(obs_dim, 1, config), in_keys=[OBSERVATION_KEY])
+

@@ -1,0 +1,92 @@
+"""Reading a finished (or interrupted) run folder back: its config, agent and evaluation."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from sim4endor._atomic import atomic_write_text
+from sim4endor.rl import checkpoint
+from sim4endor.rl.algorithms import Agent, build_agent
+from sim4endor.rl.config import TrainConfig, load_config
+from sim4endor.rl.envs import EnvFactory, env_factory
+from sim4endor.rl.evaluation import rollout_episodes
+from sim4endor.rl.metrics import summarize
+from sim4endor.rl.trainer import CONFIG_FILE, EVAL_SEED_OFFSET, EVALUATION_FILE, RunDirError
+
+
+def run_config(run_dir: Path) -> TrainConfig:
+    """Returns the config saved in ``run_dir``.
+
+    Raises:
+        RunDirError: when ``run_dir`` is not a run folder.
+    """
+    path = Path(run_dir) / CONFIG_FILE
+    if not path.is_file():
+        raise RunDirError(
+            f"{run_dir} is not a training run folder (no {CONFIG_FILE}); pass the --out folder "
+            "of `sim4endor train`."
+        )
+    return load_config(path)
+
+
+def load_agent(run_dir: Path, make_env: EnvFactory | None = None) -> tuple[TrainConfig, Agent]:
+    """Rebuilds the agent of ``run_dir`` from its config and latest checkpoint."""
+    config = run_config(run_dir)
+    env = (make_env or env_factory(config.env))(config.seed + EVAL_SEED_OFFSET)
+    try:
+        agent = build_agent(config, env.observation_spec, env.action_spec)
+    finally:
+        env.close()
+    checkpoint.load_checkpoint(run_dir, agent)
+    return config, agent
+
+
+def evaluate_run(
+    run_dir: Path,
+    *,
+    trials: int = 10,
+    seed: int | None = None,
+    max_steps: int | None = None,
+    make_env: EnvFactory | None = None,
+) -> dict[str, Any]:
+    """Evaluates the latest policy of ``run_dir`` and writes ``evaluation.json`` there.
+
+    Args:
+        run_dir: a folder written by :func:`sim4endor.rl.trainer.train`.
+        trials: episodes to run.
+        seed: evaluation seed; defaults to the run's seed + ``EVAL_SEED_OFFSET`` (the seed
+            of the periodic evaluations during training).
+        max_steps: step cap per episode; defaults to the run's ``eval.max_steps``.
+        make_env: ``seed -> env`` factory; defaults to the run's sim4endor task.
+
+    Returns:
+        The metrics of :func:`sim4endor.rl.metrics.summarize` plus ``frames``.
+    """
+    torch.set_num_threads(1)
+    config, agent = load_agent(run_dir, make_env)
+    seed = config.seed + EVAL_SEED_OFFSET if seed is None else seed
+    env = (make_env or env_factory(config.env))(seed)
+    try:
+        episodes = rollout_episodes(
+            env,
+            agent.actor,
+            trials=trials,
+            max_steps=max_steps or config.eval.max_steps,
+            seed=seed,
+        )
+    finally:
+        env.close()
+    progress = checkpoint.load_progress(run_dir)
+    metrics: dict[str, Any] = {"frames": progress.frames, **summarize(episodes)}
+    atomic_write_text(Path(run_dir) / EVALUATION_FILE, json.dumps(metrics, indent=2) + "\n")
+    return metrics
+
+
+def read_evaluation(run_dir: Path) -> dict[str, Any] | None:
+    """Returns the saved final evaluation of ``run_dir``, or None if it has none yet."""
+    path = Path(run_dir) / EVALUATION_FILE
+    return json.loads(path.read_text()) if path.is_file() else None

@@ -1,0 +1,127 @@
+"""Table I of the paper (success rate and completion time per algorithm and task) from runs.
+
+Rows are (algorithm, reward) pairs, column groups are (domain, task) pairs. Each cell pools
+the final evaluations of every seed: trials add up, the success rate is successes / trials
+and the completion time is the mean over all successful episodes (seeds weighted by their
+number of successes).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+from sim4endor.rl.config import TrainConfig
+from sim4endor.rl.runs import read_evaluation, run_config
+from sim4endor.rl.trainer import CONFIG_FILE
+
+_ALGORITHM_NAMES = {"ddpg": "DDPG", "sac": "SAC", "ppo": "PPO"}
+
+
+@dataclasses.dataclass(frozen=True)
+class RunResult:
+    """One run's identity and final evaluation."""
+
+    algorithm: str
+    reward: str
+    domain: str
+    task: str
+    seed: int
+    trials: int
+    successes: int
+    mean_completion_time_s: float | None
+
+    @classmethod
+    def from_run(cls, config: TrainConfig, evaluation: dict[str, Any]) -> RunResult:
+        """Builds a result from a run's config and its ``evaluation.json`` contents."""
+        trials = int(evaluation["trials"])
+        return cls(
+            algorithm=config.algorithm,
+            reward=config.env.reward,
+            domain=config.env.domain,
+            task=config.env.task,
+            seed=config.seed,
+            trials=trials,
+            successes=round(float(evaluation["success_rate"]) * trials),
+            mean_completion_time_s=evaluation["mean_completion_time_s"],
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class Cell:
+    """Pooled result of one (row, task) over seeds."""
+
+    trials: int
+    successes: int
+    mean_completion_time_s: float | None
+    seeds: int
+
+
+def find_runs(paths: Iterable[Path]) -> list[Path]:
+    """Run folders among ``paths``, searching inside folders that are not runs themselves."""
+    found: list[Path] = []
+    for path in map(Path, paths):
+        if (path / CONFIG_FILE).is_file():
+            found.append(path)
+        else:
+            found.extend(sorted(p.parent for p in path.rglob(CONFIG_FILE)))
+    return found
+
+
+def collect_results(run_dirs: Iterable[Path]) -> list[RunResult]:
+    """Results of the runs that have a final evaluation (others are still training)."""
+    results = []
+    for run_dir in run_dirs:
+        evaluation = read_evaluation(run_dir)
+        if evaluation is not None:
+            results.append(RunResult.from_run(run_config(run_dir), evaluation))
+    return results
+
+
+def pool(results: Sequence[RunResult]) -> Cell:
+    """Pools the results of several seeds of one cell."""
+    successes = sum(r.successes for r in results)
+    timed = [(r.successes, r.mean_completion_time_s) for r in results if r.successes]
+    mean_time = (
+        sum(n * t for n, t in timed if t is not None) / sum(n for n, _ in timed) if timed else None
+    )
+    return Cell(sum(r.trials for r in results), successes, mean_time, len(results))
+
+
+def row_label(algorithm: str, reward: str) -> str:
+    """E.g. ``DDPG (manifold distance reward)``, as in the paper."""
+    return f"{_ALGORITHM_NAMES.get(algorithm, algorithm.upper())} ({reward} distance reward)"
+
+
+def markdown_table(results: Sequence[RunResult]) -> str:
+    """Table I as GitHub markdown: one row per (algorithm, reward), three columns per task."""
+    rows = list(dict.fromkeys((r.algorithm, r.reward) for r in results))
+    tasks = list(dict.fromkeys((r.domain, r.task) for r in results))
+    header = ["Algorithm"]
+    for domain, task in tasks:
+        name = f"{domain} {task}"
+        header += [f"{name}: trials (seeds)", f"{name}: success rate", f"{name}: time (s)"]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for algorithm, reward in rows:
+        cells = [row_label(algorithm, reward)]
+        for domain, task in tasks:
+            group = [
+                r
+                for r in results
+                if (r.algorithm, r.reward, r.domain, r.task) == (algorithm, reward, domain, task)
+            ]
+            cells += _format_cell(pool(group)) if group else ["–", "–", "–"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _format_cell(cell: Cell) -> list[str]:
+    rate = cell.successes / cell.trials if cell.trials else 0.0
+    time = "–" if cell.mean_completion_time_s is None else f"{cell.mean_completion_time_s:.2f}"
+    return [
+        f"{cell.trials} ({cell.seeds})",
+        f"{rate:.0%} ({cell.successes}/{cell.trials})",
+        time,
+    ]

@@ -1,0 +1,333 @@
+"""The training loop shared by DDPG, SAC and PPO.
+
+Collect a batch with a TorchRL collector, then optimise: off-policy algorithms (DDPG, SAC)
+store every transition in a replay buffer and take one gradient step per collected frame
+(unless ``optim.updates_per_batch`` says otherwise), updating the target networks after each;
+PPO computes GAE advantages on the batch and runs ``ppo.epochs`` passes of minibatch steps.
+Periodically the deterministic policy is evaluated and a resumable checkpoint is written.
+
+Run folder layout::
+
+    RUN_DIR/config.yaml           the full TrainConfig
+    RUN_DIR/checkpoint/           resumable state (see sim4endor.rl.checkpoint)
+    RUN_DIR/logs/scalars/...csv   TorchRL CSV logger (train/*, eval/*) vs frames
+    RUN_DIR/evaluations.jsonl     one line of metrics per periodic evaluation
+    RUN_DIR/evaluation.json       the final evaluation (what `sim4endor table` reads)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import time
+from pathlib import Path
+from typing import Any
+
+import torch
+from tensordict import TensorDictBase
+from torchrl.collectors import Collector, MultiSyncCollector
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.record.loggers import Logger
+from tqdm.auto import tqdm
+
+from sim4endor._atomic import atomic_write_text
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.rl import checkpoint
+from sim4endor.rl.algorithms import Agent, build_agent
+from sim4endor.rl.config import TrainConfig, load_config, save_config, to_dict
+from sim4endor.rl.envs import EnvFactory, env_factory
+from sim4endor.rl.evaluation import EpisodeKeys, rollout_episodes, success_fraction
+from sim4endor.rl.metrics import summarize
+
+_LOG = logging.getLogger(__name__)
+
+CONFIG_FILE = "config.yaml"
+EVALUATIONS_FILE = "evaluations.jsonl"
+EVALUATION_FILE = "evaluation.json"
+#: Offset between the training and evaluation seeds, so evaluation starts are never trained on.
+EVAL_SEED_OFFSET = 10_000
+
+
+class RunDirError(Sim4EndoRError):
+    """A run folder holds a different run, or is not a run folder at all."""
+
+
+def train(
+    config: TrainConfig,
+    run_dir: Path,
+    *,
+    make_env: EnvFactory | None = None,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Trains ``config`` into ``run_dir``, resuming from its checkpoint if it has one.
+
+    Args:
+        config: the run's configuration.
+        run_dir: output folder (created); an existing checkpoint there is resumed when its
+            config matches ``config`` (``collector.total_frames`` may grow).
+        make_env: ``seed -> env`` factory; defaults to the sim4endor task of ``config.env``.
+        progress: show a tqdm progress bar.
+
+    Returns:
+        The final evaluation metrics (also written to ``run_dir/evaluation.json``).
+    """
+    run_dir = Path(run_dir)
+    make_env = make_env or env_factory(config.env)
+    _check_resumable(run_dir, config)
+    save_config(config, run_dir / CONFIG_FILE)
+    torch.set_num_threads(config.torch_threads)
+    torch.manual_seed(config.seed)
+    eval_env = make_env(config.seed + EVAL_SEED_OFFSET)
+    agent = build_agent(config, eval_env.observation_spec, eval_env.action_spec)
+    replay = _replay_buffer(config)
+    state = checkpoint.Progress()
+    if checkpoint.has_checkpoint(run_dir):
+        state = checkpoint.load_checkpoint(run_dir, agent, replay)
+        _LOG.info("resuming %s at %d frames", run_dir, state.frames)
+    logger = _logger(config, run_dir)
+    loop = _Loop(config, run_dir, agent, replay, logger, eval_env)
+    try:
+        state = loop.run(make_env, state, progress)
+        return loop.final_evaluation(state)
+    finally:
+        eval_env.close()
+
+
+def train_from_file(path: Path, run_dir: Path, overrides: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Trains the config in YAML file ``path`` (with ``section.field=value`` overrides)."""
+    return train(load_config(path, overrides), run_dir)
+
+
+def _check_resumable(run_dir: Path, config: TrainConfig) -> None:
+    saved_path = run_dir / CONFIG_FILE
+    if not checkpoint.has_checkpoint(run_dir) or not saved_path.is_file():
+        return
+    saved = load_config(saved_path)
+    ignore = {"total_frames"}
+    if _without(to_dict(saved), ignore) != _without(to_dict(config), ignore):
+        raise RunDirError(
+            f"{run_dir} holds a checkpoint of a different configuration ({saved_path}); "
+            "choose a new --out folder or delete that run."
+        )
+
+
+def _without(data: dict[str, Any], ignore: set[str]) -> dict[str, Any]:
+    return {
+        k: _without(v, ignore) if isinstance(v, dict) else v
+        for k, v in data.items()
+        if k not in ignore
+    }
+
+
+def _replay_buffer(config: TrainConfig) -> TensorDictReplayBuffer | None:
+    if config.algorithm == "ppo":
+        return None
+    return TensorDictReplayBuffer(
+        storage=LazyTensorStorage(config.replay.size), batch_size=config.optim.batch_size
+    )
+
+
+def _logger(config: TrainConfig, run_dir: Path) -> Logger | None:
+    backend = config.logger.backend
+    if backend == "none":
+        return None
+    if backend == "tensorboard":
+        try:
+            import tensorboard  # noqa: F401
+        except ImportError as exc:
+            raise Sim4EndoRError(
+                "logger.backend=tensorboard needs TensorBoard: pip install 'sim4endor[tensorboard]'"
+                " (or use logger.backend=csv)."
+            ) from exc
+        from torchrl.record.loggers.tensorboard import TensorboardLogger
+
+        return TensorboardLogger(exp_name="logs", log_dir=str(run_dir))
+    from torchrl.record.loggers.csv import CSVLogger
+
+    return CSVLogger(exp_name="logs", log_dir=str(run_dir))
+
+
+def make_collector(
+    config: TrainConfig, make_env: EnvFactory, agent: Agent, frames_done: int
+) -> Collector | MultiSyncCollector:
+    """Returns the collector of the frames still to collect (one env, or K worker processes)."""
+    collector_cfg = config.collector
+    remaining = max(collector_cfg.total_frames - frames_done, 0)
+    kwargs: dict[str, Any] = {
+        "frames_per_batch": collector_cfg.frames_per_batch,
+        "total_frames": remaining,
+        "init_random_frames": max(collector_cfg.init_random_frames - frames_done, 0),
+        # Our policies need no env transforms (e.g. InitTracker); say so, silencing a warning.
+        "auto_register_policy_transforms": False,
+    }
+    # Offsetting the seed by the frames already done keeps a resumed run deterministic.
+    seed = config.seed + frames_done
+    create = [_SeededEnv(make_env, seed + i) for i in range(config.env.num_envs)]
+    collector: Collector | MultiSyncCollector
+    if config.env.num_envs == 1:
+        collector = Collector(create[0], agent.exploration_policy, **kwargs)
+    else:
+        collector = MultiSyncCollector(create, agent.exploration_policy, **kwargs)
+    collector.set_seed(seed)
+    return collector
+
+
+@dataclasses.dataclass(frozen=True)
+class _SeededEnv:
+    """Picklable ``() -> env`` for collector workers."""
+
+    make_env: EnvFactory
+    seed: int
+
+    def __call__(self) -> Any:
+        return self.make_env(self.seed)
+
+
+class _Loop:
+    """State of one training run between batches."""
+
+    def __init__(
+        self,
+        config: TrainConfig,
+        run_dir: Path,
+        agent: Agent,
+        replay: TensorDictReplayBuffer | None,
+        logger: Logger | None,
+        eval_env: Any,
+    ) -> None:
+        self.config = config
+        self.run_dir = run_dir
+        self.agent = agent
+        self.replay = replay
+        self.logger = logger
+        self.eval_env = eval_env
+        self.keys = EpisodeKeys()
+        # Wall-clock time already added to Progress.wall_clock_s ends here.
+        self.clock = time.monotonic()
+
+    def run(self, make_env: EnvFactory, state: checkpoint.Progress, progress: bool):
+        cfg = self.config
+        if state.frames >= cfg.collector.total_frames:
+            return state
+        collector = make_collector(cfg, make_env, self.agent, state.frames)
+        bar = tqdm(
+            total=cfg.collector.total_frames,
+            initial=state.frames,
+            disable=not progress,
+            unit="frames",
+            desc=f"{cfg.algorithm} {cfg.env.domain}/{cfg.env.task}",
+        )
+        try:
+            self.clock = time.monotonic()
+            for batch in collector:
+                frames = state.frames + batch.numel()
+                state = self._learn(batch, state, frames)
+                collector.update_policy_weights_()
+                stats = self._log_batch(batch, state)
+                bar.update(batch.numel())
+                bar.set_postfix(stats)
+                self._periodic(state, frames - batch.numel())
+        finally:
+            collector.shutdown()
+            bar.close()
+        checkpoint.save_checkpoint(self.run_dir, self.agent, state, self.replay)
+        return state
+
+    def _learn(
+        self, batch: TensorDictBase, state: checkpoint.Progress, frames: int
+    ) -> checkpoint.Progress:
+        cfg = self.config
+        flat = batch.reshape(-1)
+        if cfg.algorithm == "ppo":
+            losses = self._ppo_update(flat)
+        else:
+            assert self.replay is not None
+            self.replay.extend(flat)
+            losses = []
+            if frames >= cfg.collector.init_random_frames:
+                count = cfg.optim.updates_per_batch or flat.numel()
+                for _ in range(count):
+                    losses.append(self.agent.update(self.replay.sample(), cfg.optim.max_grad_norm))
+        if losses and self.logger is not None:
+            for key in losses[-1]:
+                mean = sum(item[key] for item in losses) / len(losses)
+                self.logger.log_scalar(f"train/{key}", mean, step=frames)
+        done = int(flat["next", "done"].sum())
+        now = time.monotonic()
+        elapsed, self.clock = now - self.clock, now
+        return checkpoint.Progress(
+            frames, state.episodes + done, state.updates + len(losses), state.wall_clock_s + elapsed
+        )
+
+    def _ppo_update(self, flat: TensorDictBase) -> list[dict[str, float]]:
+        ppo = self.config.ppo
+        assert self.agent.advantage is not None
+        with torch.no_grad():
+            self.agent.advantage(flat)
+        losses = []
+        for _ in range(ppo.epochs):
+            for index in torch.randperm(flat.numel()).split(ppo.minibatch_size):
+                losses.append(self.agent.update(flat[index], self.config.optim.max_grad_norm))
+        return losses
+
+    def _log_batch(self, batch: TensorDictBase, state: checkpoint.Progress) -> dict[str, Any]:
+        nxt = batch["next"].reshape(-1)
+        done = nxt["done"].reshape(-1)
+        finished = nxt[done]
+        stats: dict[str, Any] = {"episodes": state.episodes}
+        scalars: dict[str, float] = {"train/reward": float(nxt["reward"].mean())}
+        for key in nxt.keys():
+            if isinstance(key, str) and key.startswith("reward_"):
+                scalars[f"train/{key}"] = float(nxt[key].float().mean())
+        if finished.numel():
+            scalars["train/episode_reward"] = float(finished["episode_reward"].mean())
+            success = success_fraction(finished, self.keys)
+            if success is not None:
+                scalars["train/success_rate"] = success
+                stats["success"] = f"{success:.0%}"
+        if self.logger is not None:
+            for name, value in scalars.items():
+                self.logger.log_scalar(name, value, step=state.frames)
+        return stats
+
+    def _periodic(self, state: checkpoint.Progress, frames_before: int) -> None:
+        cfg = self.config
+
+        def crossed(interval: int) -> bool:
+            return interval > 0 and state.frames // interval > frames_before // interval
+
+        if crossed(cfg.eval.interval_frames) and state.frames < cfg.collector.total_frames:
+            self.evaluate(state)
+        if crossed(cfg.checkpoint_interval_frames):
+            checkpoint.save_checkpoint(self.run_dir, self.agent, state, self.replay)
+
+    def evaluate(self, state: checkpoint.Progress) -> dict[str, Any]:
+        """Evaluates the deterministic policy, logs and appends the metrics; returns them."""
+        cfg = self.config
+        episodes = rollout_episodes(
+            self.eval_env,
+            self.agent.actor,
+            trials=cfg.eval.trials,
+            max_steps=cfg.eval.max_steps,
+            seed=cfg.seed + EVAL_SEED_OFFSET,
+            keys=self.keys,
+        )
+        metrics: dict[str, Any] = {
+            "frames": state.frames,
+            "train_wall_clock_s": round(state.wall_clock_s, 1),
+            **summarize(episodes),
+        }
+        if self.logger is not None:
+            for key, value in metrics.items():
+                if key != "frames" and value is not None:
+                    self.logger.log_scalar(f"eval/{key}", float(value), step=state.frames)
+        path = self.run_dir / EVALUATIONS_FILE
+        previous = path.read_text() if path.is_file() else ""
+        atomic_write_text(path, previous + json.dumps(metrics) + "\n")
+        return metrics
+
+    def final_evaluation(self, state: checkpoint.Progress) -> dict[str, Any]:
+        metrics = self.evaluate(state)
+        atomic_write_text(self.run_dir / EVALUATION_FILE, json.dumps(metrics, indent=2) + "\n")
+        return metrics

@@ -1,0 +1,73 @@
+"""Training configuration: the paper's defaults, YAML files, overrides and their errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from sim4endor.rl.config import (
+    ALGORITHMS,
+    ConfigError,
+    apply_overrides,
+    default_config,
+    load_config,
+    save_config,
+)
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+
+
+def test_defaults_are_the_papers_hyper_parameters() -> None:
+    config = default_config("ddpg")
+    assert config.optim.tau == 0.005
+    assert config.optim.lr == 1e-4
+    assert config.optim.gamma == 0.99
+    assert config.replay.size == 1_000_000
+    assert config.optim.batch_size == 100
+    assert config.exploration.noise_std == 0.1
+    assert config.collector.total_frames == 100_000
+    assert config.eval.trials == 10
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_experiment_config_files_match_the_library_defaults(algorithm: str) -> None:
+    assert load_config(EXPERIMENTS / algorithm / "config.yaml") == default_config(algorithm)
+
+
+def test_overrides_parse_values_as_yaml() -> None:
+    config = apply_overrides(
+        default_config("sac"),
+        ["optim.lr=3e-4", "network.hidden_sizes=[64, 64]", "env.reward=euclidean", "seed=7"],
+    )
+    assert config.optim.lr == pytest.approx(3e-4)
+    assert config.network.hidden_sizes == (64, 64)
+    assert config.env.reward == "euclidean"
+    assert config.seed == 7
+    assert config.optim.gamma == 0.99  # untouched
+
+
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ("optim.learning_rate=1", "unknown field 'learning_rate'.*'lr'"),
+        ("env.reward=cosine", "choose one of"),
+        ("collector.total_frames=1.5", "cannot read"),
+        ("optim", "section.field=value"),
+        ("optim=3", "must be a mapping"),
+    ],
+)
+def test_bad_overrides_name_the_field(override: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        apply_overrides(default_config("ddpg"), [override])
+
+
+def test_unknown_algorithm_lists_the_valid_ones() -> None:
+    with pytest.raises(ConfigError, match="ddpg"):
+        default_config("td3")
+
+
+def test_save_and_load_round_trip(tmp_path: Path) -> None:
+    config = apply_overrides(default_config("ppo"), ["ppo.epochs=3", "env.task=task_b"])
+    save_config(config, tmp_path / "config.yaml")
+    assert load_config(tmp_path / "config.yaml") == config

@@ -1,0 +1,96 @@
+"""Evaluation metrics on scripted episodes: known trajectories give known numbers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+from tensordict import TensorDict
+
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.rl.evaluation import EpisodeKeys, episode_from_rollout
+from sim4endor.rl.metrics import Episode, path_length, spl_term, summarize
+
+
+def _straight(length: float, steps: int) -> np.ndarray:
+    """Tip moving along +x from the origin in equal steps."""
+    x = np.linspace(0.0, length, steps + 1)
+    return np.stack([x, np.zeros_like(x), np.zeros_like(x)], axis=1)
+
+
+def test_path_length_of_a_3_4_5_polyline() -> None:
+    tips = np.array([[0.0, 0.0, 0.0], [3.0, 0.0, 0.0], [3.0, 4.0, 0.0], [3.0, 4.0, 0.0]])
+    assert path_length(tips) == pytest.approx(7.0)
+
+
+def test_spl_term_rewards_short_successful_paths_only() -> None:
+    assert spl_term(True, 0.1, 0.1) == pytest.approx(1.0)
+    assert spl_term(True, 0.1, 0.2) == pytest.approx(0.5)
+    assert spl_term(True, 0.1, 0.05) == pytest.approx(1.0)  # shorter than shortest: capped
+    assert spl_term(False, 0.1, 0.1) == 0.0
+
+
+def test_summarize_scripted_episodes() -> None:
+    episodes = [
+        # Success straight to a target 0.1 m away in 5 s.
+        Episode(_straight(0.1, 100), True, 5.0, np.array([0.1, 0.3]), 0.1),
+        # Success after a detour: travelled 0.2 m for a 0.1 m shortest path, 7 s.
+        Episode(_straight(0.2, 140), True, 7.0, np.array([0.2]), 0.1),
+        # Failure with the largest wall force.
+        Episode(_straight(0.05, 20), False, 1.0, np.array([0.9, 1.2]), 0.1, -100.0),
+    ]
+    metrics = summarize(episodes)
+    assert metrics["success_rate"] == pytest.approx(2 / 3)
+    assert metrics["mean_completion_time_s"] == pytest.approx(6.0)  # failures do not count
+    assert metrics["mean_path_length_m"] == pytest.approx((0.1 + 0.2 + 0.05) / 3)
+    assert metrics["spl"] == pytest.approx((1.0 + 0.5 + 0.0) / 3)
+    assert metrics["max_wall_force_n"] == pytest.approx(1.2)
+    assert metrics["mean_return"] == pytest.approx(-100.0 / 3)
+    assert metrics["trials"] == 3
+
+
+def test_summarize_without_success_has_no_completion_time() -> None:
+    metrics = summarize([Episode(_straight(0.01, 3), False, 20.0, np.zeros(3), 0.1)])
+    assert metrics["success_rate"] == 0.0
+    assert metrics["mean_completion_time_s"] is None
+    assert metrics["spl"] == 0.0
+
+
+def test_summarize_rejects_no_episodes_and_bad_shapes() -> None:
+    with pytest.raises(Sim4EndoRError, match="zero evaluation episodes"):
+        summarize([])
+    with pytest.raises(Sim4EndoRError, match=r"\(T \+ 1, 3\)"):
+        Episode(np.zeros((4, 2)), True, 1.0, np.zeros(3), 0.1)
+
+
+def test_episode_from_a_scripted_rollout() -> None:
+    # Tip moves 1 mm along +x per step for 4 steps, velocity 0.02 m/s; success on the last step.
+    steps = 4
+    tips = torch.tensor(_straight(4e-3, steps), dtype=torch.float32)
+    obs = torch.cat([tips, torch.full((steps + 1, 3), 0.02)], dim=1)
+    distance = torch.tensor([9e-3, 8e-3, 7e-3, 6e-3], dtype=torch.float64)  # after each step
+    rollout = TensorDict(
+        {
+            "observation": obs[:-1],
+            "next": {
+                "observation": obs[1:],
+                "reward": torch.ones(steps, 1),
+                "is_success": torch.tensor([False, False, False, True]),
+                "wall_force": torch.tensor([0.0, 0.2, 0.5, 0.1], dtype=torch.float64),
+                "manifold_distance": distance,
+            },
+        },
+        batch_size=[steps],
+    )
+    keys = EpisodeKeys(control_timestep_s=0.05)
+    episode = episode_from_rollout(rollout, keys)
+    assert episode.success
+    assert episode.duration_s == pytest.approx(0.2)
+    assert path_length(episode.tip_positions) == pytest.approx(4e-3, rel=1e-5)
+    assert episode.wall_forces.max() == pytest.approx(0.5)
+    # Start distance = distance after the first step + that step's displacement.
+    assert episode.shortest_path_m == pytest.approx(9e-3 + 1e-3, rel=1e-5)
+    assert episode.episode_return == pytest.approx(4.0)
+    assert not math.isnan(summarize([episode])["spl"])

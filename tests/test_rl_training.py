@@ -1,0 +1,96 @@
+"""The training loop of each algorithm on a tiny budget (Pendulum-v1): outputs, resume,
+determinism, checkpoints loadable with weights_only=True."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import torch
+from rl_testing import pendulum_env, tiny_config
+
+from sim4endor.rl import checkpoint
+from sim4endor.rl.config import ALGORITHMS
+from sim4endor.rl.runs import evaluate_run, load_agent
+from sim4endor.rl.trainer import RunDirError, train
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_each_algorithm_trains_end_to_end(algorithm: str, tmp_path: Path) -> None:
+    config = tiny_config(algorithm)
+    metrics = train(config, tmp_path, make_env=pendulum_env, progress=False)
+    assert metrics["frames"] == 200
+    assert metrics["trials"] == 2
+    assert (tmp_path / "config.yaml").is_file()
+    assert json.loads((tmp_path / "evaluation.json").read_text()) == metrics
+    evaluations = (tmp_path / "evaluations.jsonl").read_text().splitlines()
+    assert [json.loads(line)["frames"] for line in evaluations] == [100, 200]
+    scalars = tmp_path / "logs" / "scalars"
+    assert (scalars / "eval" / "success_rate.csv").is_file()
+    assert (scalars / "train" / "reward.csv").is_file()
+    progress = checkpoint.load_progress(tmp_path)
+    assert progress.frames == 200
+    if algorithm == "ppo":  # two batches of 100 frames, 2 epochs of 2 minibatches each
+        assert progress.updates == 2 * 2 * 2
+    else:  # learning starts once the 100 random frames are stored: 2 batches × 20 updates
+        assert progress.updates == 2 * 20
+
+
+def test_checkpoint_files_load_with_weights_only(tmp_path: Path) -> None:
+    train(tiny_config("sac"), tmp_path, make_env=pendulum_env, progress=False)
+    folder = tmp_path / checkpoint.CHECKPOINT_DIR
+    state = torch.load(folder / checkpoint.STATE_FILE, weights_only=True)
+    assert set(state) == {"agent", "progress", "torch_rng"}
+    replay = torch.load(folder / checkpoint.REPLAY_FILE, weights_only=True)
+    assert replay["observation"].shape == (200, 3)
+
+
+def test_ddpg_target_networks_trail_the_online_networks(tmp_path: Path) -> None:
+    train(tiny_config("ddpg"), tmp_path, make_env=pendulum_env, progress=False)
+    _, agent = load_agent(tmp_path, pendulum_env)
+    online = agent.loss.value_network_params.flatten_keys()
+    target = agent.loss.target_value_network_params.flatten_keys()
+    for key in online.keys():
+        assert not torch.equal(online[key], target[key]), key  # soft updates, not copies
+
+
+def test_same_seed_gives_identical_weights(tmp_path: Path) -> None:
+    weights = []
+    for name in ("a", "b"):
+        train(tiny_config("ddpg"), tmp_path / name, make_env=pendulum_env, progress=False)
+        _, agent = load_agent(tmp_path / name, pendulum_env)
+        weights.append(torch.cat([p.detach().flatten() for p in agent.loss.parameters()]))
+    assert torch.equal(weights[0], weights[1])
+
+
+def test_resume_continues_from_the_checkpoint(tmp_path: Path) -> None:
+    train(tiny_config("ddpg"), tmp_path, make_env=pendulum_env, progress=False)
+    first = checkpoint.load_progress(tmp_path)
+    longer = tiny_config("ddpg", "collector.total_frames=300")
+    metrics = train(longer, tmp_path, make_env=pendulum_env, progress=False)
+    resumed = checkpoint.load_progress(tmp_path)
+    assert metrics["frames"] == 300
+    assert resumed.updates == first.updates + 20
+    assert resumed.wall_clock_s > first.wall_clock_s
+    replay = torch.load(tmp_path / "checkpoint" / "replay.pt", weights_only=True)
+    assert replay["observation"].shape[0] == 300  # the resumed buffer kept the first 200
+
+
+def test_a_different_config_in_the_run_folder_is_refused(tmp_path: Path) -> None:
+    train(tiny_config("ddpg"), tmp_path, make_env=pendulum_env, progress=False)
+    with pytest.raises(RunDirError, match="different configuration"):
+        train(tiny_config("ddpg", "optim.lr=0.1"), tmp_path, make_env=pendulum_env)
+
+
+def test_evaluate_run_rewrites_the_evaluation(tmp_path: Path) -> None:
+    train(tiny_config("ppo"), tmp_path, make_env=pendulum_env, progress=False)
+    metrics = evaluate_run(tmp_path, trials=3, make_env=pendulum_env)
+    assert metrics["trials"] == 3
+    assert json.loads((tmp_path / "evaluation.json").read_text())["trials"] == 3
+
+
+def test_several_envs_use_a_multi_process_collector(tmp_path: Path) -> None:
+    config = tiny_config("sac", "env.num_envs=2")
+    metrics = train(config, tmp_path, make_env=pendulum_env, progress=False)
+    assert metrics["frames"] == 200
