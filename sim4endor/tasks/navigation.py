@@ -8,6 +8,7 @@ and the per-step ``info`` all read that evaluation, so they always agree.
 from __future__ import annotations
 
 import collections
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -25,6 +26,7 @@ from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
 from sim4endor.tasks.anatomy import Anatomy, AnatomySource
 from sim4endor.tasks.config import NavigationConfig
+from sim4endor.vessels.centerline import Projection
 
 FloatArray = NDArray[np.float64]
 
@@ -65,18 +67,23 @@ class StepEvaluation:
     terms: rewards.RewardTerms
 
 
-def lumen_excess(anatomy: Anatomy, point: FloatArray) -> float:
+def lumen_excess(anatomy: Anatomy, point: FloatArray, proj: Projection | None = None) -> float:
     """Returns how far ``point`` lies outside the lumen (m; negative inside).
 
     The lumen is approximated by the tubes around the centerline graph, so the excess is the
     distance to the graph minus the interpolated radius. Points behind the inlet plane are in
     the introducer sheath and count as inside.
+
+    Args:
+        anatomy: The anatomy.
+        point: Query point (m).
+        proj: ``point``'s projection onto the centerline graph, if already known.
     """
     vessel = anatomy.vessel
     if float(np.dot(point - vessel.inlet_position, vessel.inlet_direction)) < 0.0:
         return -math.inf
     graph = vessel.centerline
-    proj = graph.project(point)
+    proj = proj or graph.project(point)
     i, j = graph.edges[proj.edge]
     radius = (1.0 - proj.fraction) * graph.radii[i] + proj.fraction * graph.radii[j]
     return proj.distance - float(radius)
@@ -138,15 +145,19 @@ class NavigationTask(base.Task):
         return np.array(graph.nodes[graph.labels[self._target]])
 
     def _distance(self, metric: rewards.MetricName) -> rewards.DistanceToTarget:
+        """Returns the current target's distance function, built once per anatomy/target."""
         key = (self._anatomy.key, self._target, metric)
         if key not in self._distances:
-            cfg = self.config.reward
-            if metric != cfg.metric:
-                cfg = rewards.RewardConfig(metric=metric, curvature_weight=cfg.curvature_weight)
+            cfg = dataclasses.replace(self.config.reward, metric=metric)
             self._distances[key] = rewards.make_distance(
                 cfg, self._anatomy.vessel.centerline, self._target
             )
         return self._distances[key]
+
+    def _manifold(self) -> rewards.ManifoldDistance:
+        distance = self._distance("manifold")
+        assert isinstance(distance, rewards.ManifoldDistance)
+        return distance
 
     # ------------------------------------------------------------------------ episode
     def initialize_episode(self, physics: control.Physics) -> None:
@@ -218,10 +229,16 @@ class NavigationTask(base.Task):
             force, excess = math.inf, math.inf
         else:
             tip = physics.tip_position()
-            distance = self._distance(self.config.reward.metric)(tip)
-            manifold = self._distance("manifold")(tip)
+            to_target = self._manifold()
+            proj = to_target.project(tip)  # one projection serves every term
+            manifold = to_target.at(proj)
+            distance = (
+                manifold
+                if self.config.reward.metric == "manifold"
+                else self._distance(self.config.reward.metric)(tip)
+            )
             force = float(physics.wall_contact_force())
-            excess = lumen_excess(self._anatomy, tip)
+            excess = lumen_excess(self._anatomy, tip, proj)
         checks = {
             "instability": unstable,
             "wall_force": force > term.max_wall_force,
@@ -311,7 +328,7 @@ class NavigationTask(base.Task):
         if name == "rotation":
             return np.array([physics.rotation_angle()], dtype=np.float64)
         if name == "manifold_distance":
-            return np.array([self._distance("manifold")(physics.tip_position())])
+            return np.array([self._manifold()(physics.tip_position())])
         if name == "pixels":
             return self._fluoroscopy(physics)
         raise KeyError(name)  # unreachable: NavigationConfig validates the names
