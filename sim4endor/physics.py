@@ -13,6 +13,8 @@ Every element is addressed by its name from :mod:`sim4endor.models.constants`.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import mujoco
 import numpy as np
 from dm_control import mujoco as dm_mujoco
@@ -29,6 +31,15 @@ FloatArray = NDArray[np.float64]
 def _scalar(value: object) -> float:
     # Named indexing returns a 0-d or a (1,) array depending on the field.
     return float(np.ravel(np.asarray(value))[0])
+
+
+@dataclass(frozen=True, eq=False)
+class _Indices:
+    model: mujoco.MjModel
+    wire_bodies: NDArray[np.int64]
+    tip_site: int
+    wire_geoms: NDArray[np.bool_]
+    wall_geoms: NDArray[np.bool_]
 
 
 class GuidewirePhysics(dm_mujoco.Physics):
@@ -56,25 +67,39 @@ class GuidewirePhysics(dm_mujoco.Physics):
         return cls.from_model(wrapper.MjModel(build_model(vessel, config)))
 
     # ------------------------------------------------------------------------ wire state
-    def _wire_body_ids(self) -> NDArray[np.int64]:
+    def _indices(self) -> _Indices:
+        # Name lookups cost microseconds each; do them once per model (reloads change it).
         model = self.model.ptr
+        cached = getattr(self, "_index_cache", None)
+        if cached is not None and cached.model is model:
+            return cached
         first = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.wire_body(0))
         count = 0
         while mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.wire_body(count)) >= 0:
             count += 1
-        return np.arange(first, first + count)
+        bodies = np.arange(first, first + count)
+        sheath = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.SHEATH_BODY)
+        indices = _Indices(
+            model=model,
+            wire_bodies=bodies,
+            tip_site=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE),
+            wire_geoms=np.isin(model.geom_bodyid, bodies) & (model.geom_contype > 0),
+            wall_geoms=(model.geom_contype & 2).astype(bool) & (model.geom_bodyid != sheath),
+        )
+        self._index_cache = indices
+        return indices
 
     def num_wire_segments(self) -> int:
         """Number of rigid segments of the wire."""
-        return len(self._wire_body_ids())
+        return len(self._indices().wire_bodies)
 
     def tip_position(self) -> FloatArray:
         """World position of the wire's distal end (m), shape (3,)."""
-        return np.array(self.named.data.site_xpos[names.WIRE_TIP_SITE])
+        return self.data.site_xpos[self._indices().tip_site].copy()
 
     def tip_velocity(self) -> FloatArray:
         """World linear velocity of the wire's distal end (m/s), shape (3,)."""
-        site = mujoco.mj_name2id(self.model.ptr, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE)
+        site = self._indices().tip_site
         velocity = np.zeros(6)
         mujoco.mj_objectVelocity(
             self.model.ptr, self.data.ptr, mujoco.mjtObj.mjOBJ_SITE, site, velocity, 0
@@ -83,8 +108,7 @@ class GuidewirePhysics(dm_mujoco.Physics):
 
     def wire_points(self) -> FloatArray:
         """Wire centreline vertices, proximal first, tip last (m), shape (N+1, 3)."""
-        bodies = self._wire_body_ids()
-        return np.vstack([self.data.xpos[bodies], self.tip_position()[None]])
+        return np.vstack([self.data.xpos[self._indices().wire_bodies], self.tip_position()[None]])
 
     def insertion_depth(self) -> float:
         """Carriage insertion (m) from its start; the tip has advanced about as much."""
@@ -95,16 +119,6 @@ class GuidewirePhysics(dm_mujoco.Physics):
         return _scalar(self.named.data.qpos[names.ROTATION_JOINT])
 
     # ------------------------------------------------------------------------- contacts
-    def _wire_geom_mask(self) -> NDArray[np.bool_]:
-        model = self.model.ptr
-        bodies = self._wire_body_ids()
-        return np.isin(model.geom_bodyid, bodies) & (model.geom_contype > 0)
-
-    def _vessel_geom_mask(self) -> NDArray[np.bool_]:
-        model = self.model.ptr
-        sheath = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.SHEATH_BODY)
-        return (model.geom_contype & 2).astype(bool) & (model.geom_bodyid != sheath)
-
     def wall_contact_forces(self) -> FloatArray:
         """Normal force (N) of every wire–vessel-wall contact now active (sheath excluded)."""
         data, model = self.data.ptr, self.model.ptr
@@ -116,7 +130,8 @@ class GuidewirePhysics(dm_mujoco.Physics):
             mujoco.mj_fwdAcceleration(model, data)
             mujoco.mj_fwdConstraint(model, data)
         contacts = data.contact
-        wire, wall = self._wire_geom_mask(), self._vessel_geom_mask()
+        indices = self._indices()
+        wire, wall = indices.wire_geoms, indices.wall_geoms
         g1, g2 = contacts.geom1[: data.ncon], contacts.geom2[: data.ncon]
         hits = np.flatnonzero((wire[g1] & wall[g2]) | (wire[g2] & wall[g1]))
         hits = hits[contacts.efc_address[hits] >= 0]

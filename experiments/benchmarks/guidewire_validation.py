@@ -96,13 +96,20 @@ def steering(vessel: vessels.Vessel, config: SceneConfig, tries: int, seed: int)
     return out
 
 
-def escape(vessel: vessels.Vessel, config: SceneConfig, duration: float = 10.0) -> float:
-    """Worst escape (wire radii) while pushing at max speed into branch A's dead end."""
+def escape(
+    vessel: vessels.Vessel, config: SceneConfig, duration: float = 10.0
+) -> tuple[float, float, float]:
+    """Pushes at max speed into branch A's dead end while sweeping the rotation.
+
+    Returns the worst escape of the wire axis (wire radii), the worst reach of the wire's
+    surface past the lumen surface (m; the wall is 0.8 mm thick) and the largest total wall
+    force (N).
+    """
     physics = GuidewirePhysics.from_vessel(vessel, config)
     v_ins = physics.max_speeds()[0]
     period = 0.05
     substeps = round(period / physics.model.opt.timestep)
-    worst = 0.0
+    worst, surface, force = 0.0, 0.0, 0.0
     while physics.data.time < duration:
         # Sweep ±90° (after the first second) so the pushed wire slides along the wall.
         _, angle = physics.driver_targets()
@@ -110,9 +117,11 @@ def escape(vessel: vessels.Vessel, config: SceneConfig, duration: float = 10.0) 
         physics.apply_increments(v_ins * period, goal - angle, period)
         physics.step(substeps)
         if not physics.is_finite() or physics.warnings():
-            return math.inf
+            return math.inf, math.inf, math.inf
         worst = max(worst, validation.escape_depth(physics, vessel))
-    return worst / config.wire.radius
+        surface = max(surface, validation.escape_depth(physics, vessel, config.wire.radius))
+        force = max(force, physics.wall_contact_force())
+    return worst / config.wire.radius, surface, force
 
 
 def segment_table(vessel: vessels.Vessel, config: SceneConfig) -> list[dict]:
@@ -145,7 +154,7 @@ def main() -> None:
     cantilever = cantilever_errors(config.wire)
     torque = torque_error(vessel, config)
     steer = steering(vessel, config, args.tries, args.seed)
-    escape_radii = escape(vessel, config)
+    escape_radii, escape_surface, escape_force = escape(vessel, config)
     table = segment_table(vessel, config)
     result = {
         "cantilever_rel_error": max(cantilever["real_mass"], cantilever["mass_scaled"]),
@@ -159,6 +168,9 @@ def main() -> None:
           f"{GuidewirePhysics.from_vessel(vessel, config).model.opt.timestep * 1e3:g} ms, "
           f"load average {os.getloadavg()[0]:.2f}", file=log)
     print(f"cantilever: {cantilever}", file=log)
+    print(f"torque: {torque:.2f} deg; escape: axis {escape_radii:.3f} wire radii, surface "
+          f"{escape_surface * 1e3:.3f} mm past the lumen, max wall force {escape_force:.3f} N",
+          file=log)
     for target, noise, speed, res in steer["episodes"]:
         print(f"  steer {target} noise {noise:+.1f} deg speed {speed} mm/s: success "
               f"{res.success} distance {res.final_distance * 1e3:.2f} mm t {res.sim_time:.2f} s "

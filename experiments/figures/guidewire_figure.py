@@ -46,6 +46,8 @@ def main() -> None:
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom) or ""
         if name.startswith(names.VESSEL_PREFIX):
             model.geom_rgba[geom] = [0.85, 0.35, 0.35, 0.18]
+        elif name.startswith(names.WIRE_PREFIX):
+            model.geom_rgba[geom] = [0.25, 0.65, 1.0, 1.0]
         elif name.startswith(names.SHEATH_BODY):
             model.geom_rgba[geom] = [0.9, 0.8, 0.3, 0.3]
     model.vis.headlight.ambient[:] = 0.4

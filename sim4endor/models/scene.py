@@ -149,8 +149,9 @@ def _compiled(vessel_root: str | None, config: SceneConfig) -> mujoco.MjModel:
     from sim4endor import vessels  # the vessel folder is re-read once per cache entry
 
     vessel = None if vessel_root is None else vessels.load(Path(vessel_root))
+    spec = build_spec(vessel, config)
     try:
-        return build_spec(vessel, config).compile()
+        return spec.compile()
     except ValueError as exc:
         where = vessel_root or "the wire-only scene"
         raise SceneError(f"MuJoCo could not compile {where}: {exc}") from None

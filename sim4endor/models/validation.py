@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim4endor.models import constants as names
+from sim4endor.models.driver import DriverConfig
 from sim4endor.models.guidewire import GuidewireConfig, segment_lengths
 from sim4endor.models.scene import SceneConfig
 from sim4endor.physics import GuidewirePhysics
@@ -59,7 +60,13 @@ def cantilever(
     ``deflection_fraction`` of the free length (small-deflection theory holds).
     """
     straight = dataclasses.replace(wire, tip_angle=0.0, tip_stiffness_factor=1.0)
-    physics = GuidewirePhysics.from_vessel(None, SceneConfig(wire=straight, timestep=timestep))
+    driver = DriverConfig()
+    driver = dataclasses.replace(
+        driver, max_insertion=straight.length - driver.initial_protrusion - 0.003
+    )
+    physics = GuidewirePhysics.from_vessel(
+        None, SceneConfig(wire=straight, driver=driver, timestep=timestep)
+    )
     free_length = straight.length - float(segment_lengths(straight)[0])
     ei = straight.bending_stiffness
     force = 3 * ei * deflection_fraction / free_length**2
@@ -104,10 +111,12 @@ def tip_bend_direction(physics: GuidewirePhysics, back: float = 0.008) -> float:
     return float(math.atan2(np.dot(offset, other), np.dot(offset, ref)))
 
 
-def escape_depth(physics: GuidewirePhysics, vessel: Vessel) -> float:
+def escape_depth(physics: GuidewirePhysics, vessel: Vessel, offset: float = 0.0) -> float:
     """Largest distance (m) of a wire point outside the lumen; 0 when all are inside.
 
     Points behind the inlet plane (in the sheath) are not part of the vessel and are skipped.
+    ``offset`` is added to every point's distance from the centerline: the wire radius gives
+    how far the wire's surface (not its axis) reaches past the lumen surface.
     """
     points = physics.wire_points()
     ahead = (points - vessel.inlet_position) @ vessel.inlet_direction > 0
@@ -117,7 +126,7 @@ def escape_depth(physics: GuidewirePhysics, vessel: Vessel) -> float:
         projection = graph.project(point)
         i, j = graph.edges[projection.edge]
         radius = (1 - projection.fraction) * graph.radii[i] + projection.fraction * graph.radii[j]
-        worst = max(worst, projection.distance - radius)
+        worst = max(worst, projection.distance + offset - radius)
     return worst
 
 
