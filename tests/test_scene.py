@@ -112,3 +112,14 @@ def test_vessel_meshes_resolve_from_any_working_directory(
     monkeypatch.chdir(tmp_path)
     config = dataclasses.replace(scene.SceneConfig(), timestep=0.003)
     assert scene.build_model(tube, config).nmesh == 1
+
+
+def test_config_for_vessel_narrows_the_tip_for_thin_lumens(tmp_path: Path) -> None:
+    thin = write_tube_vessel(tmp_path / "thin", radius=0.0009, wall=0.0005)
+    config = scene.config_for_vessel(thin)
+    assert config.wire.tip_angle < math.radians(20)
+    assert config.wire.tip_lateral_offset <= 0.85 * (0.0009 - config.wire.radius) + 1e-9
+    assert config.wire.tip_lateral_offset > 0.8 * (0.0009 - config.wire.radius)
+    scene.build_spec(thin, config)  # the tip now fits the inlet
+    wide = scene.config_for_vessel(write_tube_vessel(tmp_path / "wide"))
+    assert wide.wire.tip_angle == GuidewireConfig().tip_angle

@@ -50,13 +50,17 @@ class SceneConfig:
 
 
 def config_for_vessel(
-    vessel: Vessel, base: SceneConfig | None = None, margin: float = 0.01
+    vessel: Vessel, base: SceneConfig | None = None, margin: float = 0.01,
+    tip_fill: float = 0.85,
 ) -> SceneConfig:
-    """Returns ``base`` with the insertion range and wire length sized to ``vessel``.
+    """Returns ``base`` with the insertion range, wire length and tip bend fitted to ``vessel``.
 
     Per-step cost grows with the number of wire segments, so the wire is only as long as the
     deepest target needs: ``max_insertion`` = the largest centerline distance from the inlet
     to a target plus ``margin``; the wire adds the protrusion and 3 mm of sheath slack.
+    If the pre-bent tip's lateral offset exceeds ``tip_fill`` × (narrowest lumen radius −
+    wire radius), the tip angle is reduced until it fits (a 35°/5 mm tip is 1.48 mm wide; a
+    coronary branch of 0.85 mm radius needs about 12°).
     """
     base = base or SceneConfig()
     graph = vessel.centerline
@@ -65,6 +69,21 @@ def config_for_vessel(
     driver = dataclasses.replace(base.driver, max_insertion=depth + margin)
     length = driver.max_insertion + driver.initial_protrusion + 0.003
     wire = dataclasses.replace(base.wire, length=length)
+    room = tip_fill * (float(graph.radii.min()) - wire.radius)
+    if room <= 0:
+        raise SceneError(
+            f"{vessel.name}'s narrowest lumen ({graph.radii.min() * 1e3:.2f} mm radius) is not "
+            f"wider than the wire ({wire.radius * 1e3:.2f} mm radius)."
+        )
+    if wire.tip_lateral_offset > room:
+        low, high = 0.0, wire.tip_angle  # bisection: the offset grows with the angle
+        while high - low > 1e-5:
+            middle = 0.5 * (low + high)
+            if dataclasses.replace(wire, tip_angle=middle).tip_lateral_offset > room:
+                high = middle
+            else:
+                low = middle
+        wire = dataclasses.replace(wire, tip_angle=low)
     return dataclasses.replace(base, driver=driver, wire=wire)
 
 
