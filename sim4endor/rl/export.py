@@ -21,7 +21,6 @@ from pathlib import Path
 
 import torch
 from torch import nn
-from torchrl.modules import TanhNormal
 
 from sim4endor._atomic import atomic_write_text
 from sim4endor.errors import Sim4EndoRError
@@ -31,38 +30,26 @@ from sim4endor.rl.envs import EnvFactory
 from sim4endor.rl.runs import load_agent
 
 
-class _TanhPolicy(nn.Module):
-    """DDPG: the actor's MLP followed by TanhModule's squashing into [low, high]."""
+class _SquashedPolicy(nn.Module):
+    """``center + half_range · tanh(u)`` with u the actor MLP's output (DDPG, TanhModule) or
+    the location of its tanh-normal (SAC, PPO: the distribution's deterministic sample)."""
 
-    low: torch.Tensor
-    high: torch.Tensor
+    center: torch.Tensor
+    half_range: torch.Tensor
 
-    def __init__(self, body: nn.Module, low: torch.Tensor, high: torch.Tensor) -> None:
+    def __init__(
+        self, body: nn.Module, low: torch.Tensor, high: torch.Tensor, *, gaussian: bool
+    ) -> None:
         super().__init__()
         self.body = body
-        self.register_buffer("low", low.clone())
-        self.register_buffer("high", high.clone())
+        self.gaussian = gaussian
+        self.register_buffer("center", (high + low) / 2)
+        self.register_buffer("half_range", (high - low) / 2)
 
     def forward(self, observation: torch.Tensor) -> torch.Tensor:
-        squashed = self.body(observation).tanh()
-        return self.low + (self.high - self.low) * (squashed + 1) / 2
-
-
-class _TanhNormalPolicy(nn.Module):
-    """SAC/PPO: the deterministic sample of the actor's tanh-normal distribution."""
-
-    low: torch.Tensor
-    high: torch.Tensor
-
-    def __init__(self, body: nn.Module, low: torch.Tensor, high: torch.Tensor) -> None:
-        super().__init__()
-        self.body = body
-        self.register_buffer("low", low.clone())
-        self.register_buffer("high", high.clone())
-
-    def forward(self, observation: torch.Tensor) -> torch.Tensor:
-        loc, scale = self.body(observation)
-        return TanhNormal(loc, scale, low=self.low, high=self.high).deterministic_sample
+        output = self.body(observation)
+        pre = output[0] if self.gaussian else output
+        return self.center + self.half_range * pre.tanh()
 
 
 def deterministic_policy(config: TrainConfig, agent: Agent) -> nn.Module:
@@ -70,10 +57,12 @@ def deterministic_policy(config: TrainConfig, agent: Agent) -> nn.Module:
     actor = agent.actor
     if config.algorithm == "ddpg":
         mlp_module, tanh = actor[0], actor[1]
-        return _TanhPolicy(mlp_module.module, tanh.action_low, tanh.action_high).eval()
+        return _SquashedPolicy(
+            mlp_module.module, tanh.action_low, tanh.action_high, gaussian=False
+        ).eval()
     params_module = actor.module[0]
     space = actor.spec["action"].space
-    return _TanhNormalPolicy(params_module.module, space.low, space.high).eval()
+    return _SquashedPolicy(params_module.module, space.low, space.high, gaussian=True).eval()
 
 
 def export_policy(
@@ -126,7 +115,7 @@ def _export_onnx(policy: nn.Module, example: torch.Tensor, path: Path) -> Path:
         import onnx  # noqa: F401
     except ImportError as exc:
         raise Sim4EndoRError(
-            "ONNX export needs the onnx and onnxscript packages (pip install onnx onnxscript); "
+            "ONNX export needs the onnx extra: pip install 'sim4endor[onnx]'; "
             "the TorchScript policy.pt was written."
         ) from exc
     torch.onnx.export(

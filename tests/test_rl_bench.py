@@ -1,0 +1,95 @@
+"""The bench job on a tiny grid (Pendulum-v1): runs, table, figures, skipping finished runs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from rl_testing import TINY, pendulum_env
+
+from sim4endor.rl.bench import (
+    BenchConfig,
+    BenchConfigError,
+    bench_config_from_dict,
+    load_bench_config,
+    plan,
+    run_bench,
+)
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+
+
+def _tiny_bench(workers: int = 1) -> BenchConfig:
+    return BenchConfig(
+        rows=(("ddpg", "manifold"), ("ppo", "manifold")),
+        tasks=(("simplified_phantom", "task_a"),),
+        seeds=(0, 1),
+        overrides=TINY,
+        workers=workers,
+    )
+
+
+def test_shipped_bench_configs_plan_the_papers_grids() -> None:
+    table1 = load_bench_config(EXPERIMENTS / "bench" / "table1.yaml")
+    runs = plan(table1)
+    assert len(runs) == 4 * 2 * 3  # rows × tasks × seeds
+    assert runs[0][0] == "ddpg-manifold-simplified_phantom-task_a-s0"
+    assert {c.env.reward for _, c in runs if c.algorithm == "ddpg"} == {"manifold", "euclidean"}
+    assert all(c.collector.total_frames == 100_000 and c.eval.trials == 10 for _, c in runs)
+    complex_runs = plan(load_bench_config(EXPERIMENTS / "bench" / "complex_phantom.yaml"))
+    assert {c.env.domain for _, c in complex_runs} == {"vascular_phantom"}
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"rows": [], "tasks": [], "seed": [1]}, "unknown keys"),
+        ({"rows": [{"algorithm": "ddpg"}], "tasks": []}, "'rows' must list"),
+        ({"rows": [{"algorithm": "a2c", "reward": "manifold"}], "tasks": []}, "unknown algorithm"),
+    ],
+)
+def test_bad_bench_configs_name_the_problem(data: dict, message: str) -> None:
+    with pytest.raises(BenchConfigError, match=message):
+        bench_config_from_dict(data)
+
+
+def test_bench_writes_runs_table_figures_and_skips_finished_runs(tmp_path: Path) -> None:
+    results = run_bench(_tiny_bench(), tmp_path, make_env=pendulum_env)
+    assert results == tmp_path / "results.md"
+    runs = sorted(p.name for p in (tmp_path / "runs").iterdir())
+    assert len(runs) == 4
+    table = (tmp_path / "table.md").read_text()
+    assert "DDPG (manifold distance reward) | 4 (2)" in table  # 2 seeds × 2 trials
+    assert "PPO (manifold distance reward)" in table
+    figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    assert "simplified_phantom-task_a-eval_success_rate.png" in figures
+    assert "simplified_phantom-task_a-train_reward.png" in figures
+    text = results.read_text()
+    assert table in text and "logical CPUs" in text and "wall-clock" in text
+    stamp = (tmp_path / "runs" / runs[0] / "evaluation.json").stat().st_mtime_ns
+    run_bench(_tiny_bench(), tmp_path, make_env=pendulum_env)
+    assert (tmp_path / "runs" / runs[0] / "evaluation.json").stat().st_mtime_ns == stamp
+
+
+@pytest.mark.slow  # starting a local Ray cluster takes ~30 s on the shared machine
+def test_bench_on_a_local_ray_cluster(tmp_path: Path) -> None:
+    ray = pytest.importorskip("ray", reason="the ray extra is not installed")
+    bench = BenchConfig(
+        rows=(("sac", "manifold"),),
+        tasks=(("simplified_phantom", "task_a"),),
+        seeds=(0,),
+        overrides=TINY,
+    )
+    # Ray workers import the env factory from this folder.
+    here = str(Path(__file__).resolve().parent)
+    ray.init(
+        num_cpus=1,
+        include_dashboard=False,
+        log_to_driver=False,
+        runtime_env={"env_vars": {"PYTHONPATH": here}},
+    )
+    try:
+        run_bench(bench, tmp_path, backend="ray", make_env=pendulum_env)
+    finally:
+        ray.shutdown()
+    assert "SAC (manifold distance reward) | 2 (1)" in (tmp_path / "table.md").read_text()

@@ -1,0 +1,54 @@
+"""Policy export: the TorchScript (and ONNX) policy equals the evaluated deterministic actor."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import torch
+from rl_testing import pendulum_env, tiny_config
+from tensordict import TensorDict
+from torchrl.envs import ExplorationType, set_exploration_type
+
+from sim4endor.rl.config import ALGORITHMS
+from sim4endor.rl.export import export_policy
+from sim4endor.rl.runs import load_agent
+from sim4endor.rl.trainer import train
+
+
+def _reference(run_dir: Path, observation: torch.Tensor) -> torch.Tensor:
+    _, agent = load_agent(run_dir, pendulum_env)
+    td = TensorDict({"observation": observation}, batch_size=observation.shape[:-1])
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        return agent.actor(td)["action"]
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_torchscript_policy_matches_the_actor(algorithm: str, tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    train(tiny_config(algorithm), run_dir, make_env=pendulum_env, progress=False)
+    paths = export_policy(run_dir, tmp_path / "export", make_env=pendulum_env)
+    policy = torch.jit.load(str(paths[0]))
+    observation = torch.randn(16, 3)
+    action = policy(observation)
+    assert action.shape == (16, 1)
+    assert torch.allclose(action, _reference(run_dir, observation), atol=1e-6)
+    assert policy(torch.randn(3)).shape == (1,)  # unbatched input
+    assert (action.abs() <= 2.0).all()  # Pendulum's action bounds
+    contract = json.loads(paths[1].read_text())
+    assert contract["algorithm"] == algorithm
+
+
+def test_onnx_policy_matches_the_actor(tmp_path: Path) -> None:
+    pytest.importorskip("onnxscript", reason="ONNX export needs the onnx/onnxscript packages")
+    from onnx.reference import ReferenceEvaluator
+
+    run_dir = tmp_path / "run"
+    train(tiny_config("sac"), run_dir, make_env=pendulum_env, progress=False)
+    paths = export_policy(run_dir, tmp_path / "export", onnx=True, make_env=pendulum_env)
+    observation = torch.randn(5, 3)
+    (action,) = ReferenceEvaluator(str(paths[-1])).run(None, {"observation": observation.numpy()})
+    expected = _reference(run_dir, observation).numpy()
+    assert action.shape == expected.shape
+    assert abs(action - expected).max() < 1e-5

@@ -1,0 +1,63 @@
+"""Table I: pooling seeds and the markdown the `table` command prints."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from sim4endor.cli import main
+from sim4endor.rl.config import apply_overrides, default_config, save_config
+from sim4endor.rl.table import RunResult, markdown_table, pool
+
+
+def _result(algorithm: str, reward: str, task: str, seed: int, successes: int, time: float | None):
+    return RunResult(algorithm, reward, "simplified_phantom", task, seed, 10, successes, time)
+
+
+def test_pool_weights_completion_times_by_successes() -> None:
+    cell = pool(
+        [
+            _result("ddpg", "manifold", "task_a", 0, 8, 5.0),
+            _result("ddpg", "manifold", "task_a", 1, 2, 10.0),
+            _result("ddpg", "manifold", "task_a", 2, 0, None),
+        ]
+    )
+    assert (cell.trials, cell.successes, cell.seeds) == (30, 10, 3)
+    assert cell.mean_completion_time_s == pytest.approx((8 * 5.0 + 2 * 10.0) / 10)
+
+
+def test_markdown_table_rows_and_cells() -> None:
+    results = [
+        _result("ddpg", "manifold", "task_a", 0, 8, 5.27),
+        _result("ddpg", "euclidean", "task_a", 0, 3, 5.39),
+        _result("ddpg", "manifold", "task_b", 0, 0, None),
+    ]
+    lines = markdown_table(results).splitlines()
+    assert len(lines) == 2 + 2  # header, rule, two rows
+    assert lines[2].startswith("| DDPG (manifold distance reward) | 10 (1) | 80% (8/10) | 5.27 |")
+    assert lines[2].endswith("| 10 (1) | 0% (0/10) | – |")
+    assert "| DDPG (euclidean distance reward) | 10 (1) | 30% (3/10) | 5.39 | – | – | – |" in lines
+
+
+def _fake_run(run_dir: Path, algorithm: str, seed: int, success_rate: float) -> None:
+    config = apply_overrides(default_config(algorithm), [f"seed={seed}"])
+    save_config(config, run_dir / "config.yaml")
+    evaluation = {"trials": 10, "success_rate": success_rate, "mean_completion_time_s": 6.0}
+    (run_dir / "evaluation.json").write_text(json.dumps(evaluation))
+
+
+def test_table_command_finds_runs_below_a_folder(tmp_path: Path, capsys) -> None:
+    _fake_run(tmp_path / "runs" / "sac-0", "sac", 0, 0.8)
+    _fake_run(tmp_path / "runs" / "sac-1", "sac", 1, 0.9)
+    (tmp_path / "runs" / "unfinished").mkdir()
+    assert main(["table", str(tmp_path), "--out", str(tmp_path / "table.md")]) == 0
+    printed = capsys.readouterr().out
+    assert "| SAC (manifold distance reward) | 20 (2) | 85% (17/20) | 6.00 |" in printed
+    assert (tmp_path / "table.md").read_text() == printed
+
+
+def test_table_command_without_runs_is_a_one_line_error(tmp_path: Path, capsys) -> None:
+    assert main(["table", str(tmp_path)]) == 2
+    assert "No evaluated runs" in capsys.readouterr().err
