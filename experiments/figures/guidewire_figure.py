@@ -4,7 +4,8 @@
         [--vessel simplified_phantom] [--out docs/figures/guidewire_in_phantom.png]
 
 The wire is steered into branch B (rotate 180°, insert) and stopped past the bifurcation;
-the picture shows the vessel walls (translucent), the sheath and the wire, seen from +z.
+the picture shows the vessel walls (translucent), the sheath and the wire, seen from +z:
+the whole phantom above, a close-up of the tip below.
 """
 
 from __future__ import annotations
@@ -57,9 +58,16 @@ def main() -> None:
     camera.elevation, camera.azimuth = -90.0, 90.0
     option = mujoco.MjvOption()
     option.geomgroup[:] = [1, 1, 1, 1, 0, 0]  # hide the wire's stiffness cores (group 5)
+    views = []
     with mujoco.Renderer(model, height=480, width=960) as renderer:
         renderer.update_scene(physics.data.ptr, camera=camera, scene_option=option)
-        pixels = renderer.render()
+        views.append(renderer.render())
+        # Close-up of the tip: the 0.36 mm wire is a few pixels wide in the overview.
+        camera.lookat[:] = physics.tip_position()
+        camera.distance = 0.025
+        renderer.update_scene(physics.data.ptr, camera=camera, scene_option=option)
+        views.append(renderer.render())
+    pixels = np.concatenate(views, axis=0)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     iio.imwrite(args.out, pixels)
     print(f"wrote {args.out} (tip at {np.round(physics.tip_position() * 1e3, 1)} mm)")
