@@ -87,6 +87,12 @@ def test_compiled_model_is_cached_and_copied(tube: Vessel) -> None:
     assert scene.build_model(tube, config).geom_friction.max() > 0.0
 
 
+def test_rebuilt_vessel_folder_is_recompiled(tmp_path: Path) -> None:
+    first = scene.build_model(write_tube_vessel(tmp_path / "t", length=0.05))
+    second = scene.build_model(write_tube_vessel(tmp_path / "t", length=0.07))
+    assert not np.array_equal(first.geom_pos, second.geom_pos)  # the walls moved
+
+
 def test_config_for_vessel_sizes_wire_to_the_deepest_target(tube: Vessel) -> None:
     config = scene.config_for_vessel(tube)
     assert config.driver.max_insertion == pytest.approx(0.06 + 0.01)

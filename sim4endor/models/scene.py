@@ -27,7 +27,8 @@ from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
 from sim4endor.models.driver import DriverConfig, add_driver, add_sheath
 from sim4endor.models.guidewire import GuidewireConfig, add_guidewire
-from sim4endor.vessels import Vessel
+from sim4endor.vessels import CENTERLINE_FILE, Vessel
+from sim4endor.vessels.manifest import MANIFEST_FILE
 
 
 class SceneError(Sim4EndoRError, ValueError):
@@ -164,7 +165,11 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
 
 
 @functools.lru_cache(maxsize=8)
-def _compiled(vessel_root: str | None, config: SceneConfig) -> mujoco.MjModel:
+def _compiled(
+    vessel_root: str | None, stamp: tuple[int, ...], config: SceneConfig
+) -> mujoco.MjModel:
+    # ``stamp`` (file modification times) makes a rebuilt folder at the same path a new entry.
+    del stamp
     from sim4endor import vessels  # the vessel folder is re-read once per cache entry
 
     vessel = None if vessel_root is None else vessels.load(Path(vessel_root))
@@ -178,6 +183,11 @@ def _compiled(vessel_root: str | None, config: SceneConfig) -> mujoco.MjModel:
 
 def build_model(vessel: Vessel | None, config: SceneConfig | None = None) -> mujoco.MjModel:
     """Returns the compiled scene, compiled once per (vessel folder, config) and copied."""
-    root = None if vessel is None else str(vessel.root)
-    return copy.copy(_compiled(root, config or SceneConfig()))
+    if vessel is None:
+        return copy.copy(_compiled(None, (), config or SceneConfig()))
+    stamp = tuple(
+        (vessel.root / name).stat().st_mtime_ns
+        for name in (MANIFEST_FILE, vessel.manifest.mjcf, CENTERLINE_FILE)
+    )
+    return copy.copy(_compiled(str(vessel.root), stamp, config or SceneConfig()))
 
