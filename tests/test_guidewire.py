@@ -110,3 +110,14 @@ def test_cantilever_matches_euler_bernoulli_within_5_percent() -> None:
         GuidewireConfig(mass_scale=1.0, max_segment_length=0.01), settle_time=2.0
     )
     assert coarse.relative_error < 0.05
+
+
+def test_softened_tip_bends_as_predicted() -> None:
+    # A short wire with a long, 4x softer tip: the plugin must read the per-body core radius.
+    wire = GuidewireConfig(
+        length=0.04, tip_length=0.015, tip_segments=6, tip_stiffness_factor=0.25, mass_scale=1.0
+    )
+    soft = validation.cantilever(wire, soft_tip=True, settle_time=2.0)
+    uniform = validation.cantilever(wire, settle_time=2.0)
+    assert soft.relative_error < 0.05
+    assert soft.deflection > 1.1 * uniform.deflection  # theory: 1.22x

@@ -49,9 +49,12 @@ class CantileverResult:
 
 def cantilever(
     wire: GuidewireConfig, timestep: float = 0.005, settle_time: float = 3.0,
-    deflection_fraction: float = 0.01,
+    deflection_fraction: float = 0.01, soft_tip: bool = False,
 ) -> CantileverResult:
-    """Clamps a straight wire (no pre-bend, uniform stiffness) and loads its tip sideways.
+    """Clamps a straight wire (no pre-bend) and loads its tip sideways.
+
+    With ``soft_tip`` the tip keeps its ``tip_stiffness_factor`` f and the prediction is
+    ``F/(3EI)·(L³ − t³ + t³/f)`` for a tip of length t; otherwise the wire is uniform.
 
     Contacts are disabled (the sheath would hold the wire). The carriage's joints (slide and
     twist about the wire axis) cannot move under a lateral tip force, so the wire is clamped
@@ -59,10 +62,11 @@ def cantilever(
     length is measured from there. The load is chosen for a deflection of
     ``deflection_fraction`` of the free length (small-deflection theory holds).
     """
-    straight = dataclasses.replace(wire, tip_angle=0.0, tip_stiffness_factor=1.0)
-    driver = DriverConfig()
-    driver = dataclasses.replace(
-        driver, max_insertion=straight.length - driver.initial_protrusion - 0.003
+    factor = wire.tip_stiffness_factor if soft_tip else 1.0
+    straight = dataclasses.replace(wire, tip_angle=0.0, tip_stiffness_factor=factor)
+    protrusion = max(DriverConfig().initial_protrusion, straight.tip_length + 0.003)
+    driver = DriverConfig(
+        initial_protrusion=protrusion, max_insertion=straight.length - protrusion - 0.003
     )
     physics = GuidewirePhysics.from_vessel(
         None, SceneConfig(wire=straight, driver=driver, timestep=timestep)
@@ -84,7 +88,9 @@ def cantilever(
         )
         physics.step()
     deflection = float(physics.tip_position()[2] - start[2])
-    return CantileverResult(deflection, force * free_length**3 / (3 * ei), free_length, force)
+    tip = straight.tip_length
+    compliance = (free_length**3 - tip**3 + tip**3 / factor) / (3 * ei)
+    return CantileverResult(deflection, force * compliance, free_length, force)
 
 
 def tip_bend_direction(physics: GuidewirePhysics, back: float = 0.008) -> float:
