@@ -74,17 +74,14 @@ def test_pixels_make_a_dict_space() -> None:
 
 
 @pytest.mark.render
-def test_rendering_and_pixels_offscreen() -> None:
+def test_rgb_rendering_offscreen() -> None:
+    # A fresh process: MUJOCO_GL must be chosen before MuJoCo's renderer is first imported.
     script = textwrap.dedent(f"""
-        import gymnasium, numpy as np, sim4endor
-        env = gymnasium.make({TASK_A!r}, render_mode="rgb_array", width=64, height=48,
-                             task_kwargs={{"observations": ("pixels",)}})
-        obs, _ = env.reset(seed=0)
+        import gymnasium, sim4endor
+        env = gymnasium.make({TASK_A!r}, render_mode="rgb_array", width=64, height=48)
+        env.reset(seed=0)
         frame = env.render()
         assert frame.shape == (48, 64, 3) and frame.std() > 0, frame.shape
-        pixels = obs["pixels"]
-        assert pixels.shape == (64, 64, 1) and pixels.dtype == np.uint8
-        assert pixels.min() < pixels.max(), "blank fluoroscopy image"
     """)
     env = {**os.environ, "MUJOCO_GL": "osmesa", "PYOPENGL_PLATFORM": "osmesa"}
     result = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,

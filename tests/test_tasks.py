@@ -9,7 +9,7 @@ import pytest
 from navigation_helpers import require_vessel
 
 from sim4endor import suite
-from sim4endor.tasks import InvalidActionError, TerminationConfig
+from sim4endor.tasks import InvalidActionError, PixelsConfig, TerminationConfig, fluoroscopy
 from sim4endor.tasks.anatomy import compile_anatomy
 from sim4endor.tasks.navigation import lumen_excess
 
@@ -115,6 +115,19 @@ def test_optional_observations_have_documented_shapes() -> None:
     np.testing.assert_allclose(obs["last_action"], INSERT)
     assert obs["insertion"][0] > 0
     assert obs["manifold_distance"][0] == pytest.approx(env.task.step_info()["manifold_distance"])
+
+
+def test_pixels_show_the_lumen_and_the_wire_without_opengl() -> None:
+    env = suite.load("simplified_phantom", "task_a",
+                     {"observations": ("pixels",), "pixels": PixelsConfig(height=48, width=40)})
+    env.reset()
+    for _ in range(30):
+        pixels = env.step(INSERT).observation["pixels"]
+    assert pixels.shape == (48, 40, 1) and pixels.dtype == np.uint8
+    values = set(np.unique(pixels))
+    assert values == {fluoroscopy.WIRE, fluoroscopy.LUMEN, fluoroscopy.BACKGROUND}
+    # ~45 mm of wire inside the framed vessel at ~3 mm per pixel: a line of >= 10 pixels.
+    assert np.count_nonzero(pixels == fluoroscopy.WIRE) >= 10
 
 
 def test_euclidean_reward_reports_both_distances() -> None:

@@ -16,7 +16,9 @@ from collections.abc import Sequence
 from sim4endor.errors import Sim4EndoRError
 
 # Subcommand modules, imported lazily so `sim4endor --help` stays fast.
-_SUBCOMMAND_MODULES: tuple[str, ...] = ("vessel", "train", "evaluate", "table", "bench")
+_SUBCOMMAND_MODULES: tuple[str, ...] = (
+    "vessel", "train", "evaluate", "table", "bench", "view", "render",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,5 +1,6 @@
 """Navigation tasks: the paper's MDP on top of :class:`sim4endor.physics.GuidewirePhysics`."""
 
+from sim4endor.tasks import fluoroscopy
 from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, AnatomySource, FixedAnatomy
 from sim4endor.tasks.config import (
     DEFAULT_OBSERVATIONS,
@@ -27,4 +28,5 @@ __all__ = [
     "PixelsConfig",
     "TaskConfigError",
     "TerminationConfig",
+    "fluoroscopy",
 ]

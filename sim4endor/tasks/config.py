@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rewards import RewardConfig
 
@@ -95,19 +97,36 @@ class TerminationConfig:
 
 @dataclass(frozen=True)
 class PixelsConfig:
-    """The fluoroscopy-like image: a top-down (antero-posterior) grey-level projection.
+    """The fluoroscopy-like image: an orthographic projection of lumen and wire.
+
+    The default looks down the model's -z axis (antero-posterior view of the phantoms, which
+    lie in the x–y plane); the image frames the whole centerline graph.
 
     Attributes:
         height: Image height (pixels).
         width: Image width (pixels).
-        elevation: Camera elevation (deg); -90 looks straight down the model's z axis.
-        azimuth: Camera azimuth (deg).
+        view_direction: Direction the "X-ray" travels, in the vessel frame.
+        up: Direction shown upwards in the image (made orthogonal to ``view_direction``).
     """
 
     height: int = 64
     width: int = 64
-    elevation: float = -90.0
-    azimuth: float = 90.0
+    view_direction: tuple[float, float, float] = (0.0, 0.0, -1.0)
+    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if self.height < 8 or self.width < 8:
+            raise TaskConfigError(f"PixelsConfig: images must be >= 8x8, got {self}.")
+        if abs(float(np.dot(_unit(self.view_direction), _unit(self.up)))) > 0.99:
+            raise TaskConfigError("PixelsConfig: up must not be parallel to view_direction.")
+
+
+def _unit(vector: tuple[float, float, float]) -> np.ndarray:
+    v = np.asarray(vector, dtype=np.float64)
+    norm = float(np.linalg.norm(v))
+    if norm == 0.0:
+        raise TaskConfigError(f"PixelsConfig: direction {vector} has zero length.")
+    return v / norm
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from dm_control import mujoco as dm_mujoco
 from dm_control.mujoco.wrapper import MjData, MjModel
 from dm_control.rl import control
 from dm_control.suite import base
@@ -26,6 +25,7 @@ from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
 from sim4endor.tasks.anatomy import Anatomy, AnatomySource
 from sim4endor.tasks.config import NavigationConfig
+from sim4endor.tasks.fluoroscopy import Fluoroscope
 from sim4endor.vessels.centerline import Projection
 
 FloatArray = NDArray[np.float64]
@@ -121,7 +121,7 @@ class NavigationTask(base.Task):
         self._max_insertion = math.inf
         self._max_rotation = math.inf
         self._evaluation: StepEvaluation | None = None
-        self._camera: dm_mujoco.MovableCamera | None = None
+        self._fluoroscopes: dict[str, Fluoroscope] = {}
 
     def reseed(self, seed: int) -> None:
         """Replaces the task's random generator by one seeded with ``seed``."""
@@ -166,7 +166,6 @@ class NavigationTask(base.Task):
         if anatomy is not self._anatomy:
             # Physics was compiled for another anatomy: load this one's cached model.
             physics._reload_from_data(MjData(MjModel(anatomy.model)))
-            self._camera = None
         self._anatomy = anatomy
         self._max_insertion, self._max_rotation = self._limits(physics)
         self._insertion = 0.0
@@ -334,16 +333,9 @@ class NavigationTask(base.Task):
         raise KeyError(name)  # unreachable: NavigationConfig validates the names
 
     def _fluoroscopy(self, physics: control.Physics) -> np.ndarray:
-        """Returns a grey-level top-down projection, dark wire on a bright background."""
-        cfg = self.config.pixels
-        if self._camera is None:
-            self._camera = dm_mujoco.MovableCamera(physics, height=cfg.height, width=cfg.width)
-            self._camera.set_pose(
-                lookat=physics.model.stat.center,
-                distance=2.0 * float(physics.model.stat.extent),
-                azimuth=cfg.azimuth,
-                elevation=cfg.elevation,
-            )
-        rgb = self._camera.render().astype(np.float64)
-        grey = rgb @ np.array([0.299, 0.587, 0.114])
-        return (255.0 - grey).astype(np.uint8)[:, :, None]
+        """Returns the fluoroscopy-like projection (lumen grey, wire black, field white)."""
+        key = self._anatomy.key
+        if key not in self._fluoroscopes:
+            self._fluoroscopes[key] = Fluoroscope(self._anatomy.vessel.centerline,
+                                                  self.config.pixels)
+        return self._fluoroscopes[key].image(physics.wire_points())

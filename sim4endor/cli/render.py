@@ -1,0 +1,178 @@
+"""``sim4endor render DOMAIN TASK --policy ... --out episode.mp4``: a video, headless.
+
+Rendering uses an offscreen OpenGL context: ``MUJOCO_GL`` defaults to ``osmesa`` here (set
+``MUJOCO_GL=egl`` for a GPU). The camera looks straight down on the vessel (the phantoms lie
+in the x–y plane), the target is marked by a green sphere and the top-left text shows the
+step, the manifold distance D and the reward.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from sim4endor.errors import Sim4EndoRError
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from sim4endor.suite import NavigationEnvironment
+
+Policy = Callable[[np.ndarray], np.ndarray]
+BUILTIN_POLICIES = ("insert", "random")
+TARGET_RGBA = np.array([0.1, 0.9, 0.2, 0.8], dtype=np.float32)
+
+
+class PolicyLoadError(Sim4EndoRError, ValueError):
+    """Raised when ``--policy`` is neither a built-in name nor a loadable policy file."""
+
+
+def load_policy(spec: str, seed: int) -> Policy:
+    """Returns an observation-vector -> action function.
+
+    Args:
+        spec: ``"insert"`` (push straight in), ``"random"`` (uniform actions) or the path of a
+            TorchScript policy exported by ``sim4endor.rl.export`` (observation (6,) float32
+            -> action (2,) in [-1, 1]).
+        seed: Seed of the random policy.
+    """
+    if spec == "insert":
+        return lambda _obs: np.array([1.0, 0.0])
+    if spec == "random":
+        rng = np.random.default_rng(seed)
+        return lambda _obs: rng.uniform(-1.0, 1.0, size=2)
+    path = Path(spec)
+    if not path.is_file():
+        raise PolicyLoadError(
+            f"--policy {spec!r} is neither {list(BUILTIN_POLICIES)} nor an existing file; "
+            "export a trained run with sim4endor.rl.export (TorchScript .pt)."
+        )
+    import torch
+
+    try:
+        module = torch.jit.load(str(path), map_location="cpu")
+    except RuntimeError as exc:
+        raise PolicyLoadError(f"{path} is not a TorchScript policy: {exc}") from None
+    module.eval()
+
+    def act(observation: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            obs = torch.as_tensor(observation, dtype=torch.float32)
+            return np.asarray(module(obs).numpy(), dtype=np.float64)
+
+    return act
+
+
+def add_sphere(scene: mujoco.MjvScene, position: np.ndarray, radius: float,
+               rgba: np.ndarray) -> None:
+    """Appends a visual-only sphere to an abstract scene (target marker)."""
+    import mujoco
+
+    # dm_control hands its wrapper of the scene; the viewer the raw mujoco.MjvScene.
+    scene = getattr(scene, "ptr", scene)
+    if scene.ngeom >= scene.maxgeom:
+        return
+    # Grow first: dm_control's scene wrapper only exposes geoms[:ngeom].
+    scene.ngeom += 1
+    mujoco.mjv_initGeom(
+        scene.geoms[scene.ngeom - 1], mujoco.mjtGeom.mjGEOM_SPHERE,
+        np.array([radius, 0.0, 0.0]), np.asarray(position, dtype=np.float64),
+        np.eye(3).ravel(), rgba,
+    )
+
+
+def top_down_pose(points: np.ndarray, fovy_deg: float = 45.0) -> dict[str, Any]:
+    """Returns a free-camera pose looking down -z that frames ``points`` (m) with a margin."""
+    low, high = points.min(axis=0), points.max(axis=0)
+    half = 0.5 * float(np.max(high[:2] - low[:2]))
+    distance = 1.15 * half / np.tan(np.radians(fovy_deg) / 2) + float(high[2] - low[2])
+    return {"lookat": 0.5 * (low + high), "distance": distance, "azimuth": 90.0,
+            "elevation": -90.0}
+
+
+def status_text(env: NavigationEnvironment, step: int, reward: float, total: float) -> str:
+    """Returns the live status lines: step, D (mm), reward, return, failure/success."""
+    info = env.task.step_info() if step else {}
+    distance = info.get("manifold_distance")
+    lines = [
+        f"step {step}  t {env.physics.time():.2f} s",
+        "D  --" if distance is None else f"D  {float(distance) * 1e3:.1f} mm",
+        f"reward {reward:+.3f}  return {total:+.2f}",
+    ]
+    if info.get("is_success"):
+        lines.append("SUCCESS")
+    elif info.get("failure"):
+        lines.append(f"FAILURE: {info['failure']}")
+    return "\n".join(lines)
+
+
+def state_vector(observation: Any) -> np.ndarray:
+    """Concatenates the non-image observation entries, as the gymnasium adapter does."""
+    return np.concatenate(
+        [np.asarray(v, dtype=np.float32).ravel() for k, v in observation.items() if k != "pixels"]
+    )
+
+
+def render_episode(args: argparse.Namespace) -> int:
+    """Runs one episode with the policy and writes the video atomically."""
+    os.environ.setdefault("MUJOCO_GL", "osmesa")
+    import imageio.v2 as imageio
+    from dm_control.mujoco import MovableCamera, TextOverlay
+
+    from sim4endor import suite
+
+    env = suite.load(args.domain, args.task, {"random": args.seed, "reward": args.reward})
+    policy = load_policy(args.policy, args.seed)
+    timestep = env.reset()
+
+    def mark_target(_physics: Any, scene: mujoco.MjvScene) -> None:
+        add_sphere(scene, env.task.target_position, 1.0e-3, TARGET_RGBA)
+
+    camera = MovableCamera(env.physics, height=args.height, width=args.width,
+                           scene_callback=mark_target)
+    camera.set_pose(**top_down_pose(env.task.anatomy.vessel.centerline.nodes))
+
+    frames, total, step = [], 0.0, 0
+    while True:
+        reward = 0.0 if timestep.reward is None else float(timestep.reward)
+        total += reward
+        overlay = TextOverlay(body=status_text(env, step, reward, total))
+        frames.append(np.array(camera.render(overlays=[overlay])))  # render reuses its buffer
+        if timestep.last() or step >= args.max_steps:
+            break
+        timestep = env.step(policy(state_vector(timestep.observation)))
+        step += 1
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
+        staging = Path(tmp) / f"partial{out.suffix}"
+        imageio.mimwrite(staging, frames, fps=args.fps)
+        staging.replace(out)
+    env.physics.free()  # release the GL context now, not in dm_control's atexit hook
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Adds the ``render`` subcommand."""
+    parser = subparsers.add_parser(
+        "render", help="write a video of one episode (headless)",
+        description="Run one episode with a policy and write a top-down video (mp4 or gif).",
+    )
+    parser.add_argument("domain", help="suite domain, e.g. simplified_phantom")
+    parser.add_argument("task", help="suite task, e.g. task_a")
+    parser.add_argument("--policy", default="insert",
+                        help="'insert', 'random' or an exported TorchScript policy (.pt)")
+    parser.add_argument("--out", type=Path, default=Path("episode.mp4"), help="video file")
+    parser.add_argument("--seed", type=int, default=0, help="task and random-policy seed")
+    parser.add_argument("--reward", choices=("manifold", "euclidean"), default="manifold")
+    parser.add_argument("--max-steps", type=int, default=400, help="stop after this many steps")
+    parser.add_argument("--width", type=int, default=640)
+    parser.add_argument("--height", type=int, default=480)
+    parser.add_argument("--fps", type=int, default=20, help="20 = real time at 20 Hz control")
+    parser.set_defaults(func=render_episode)
