@@ -152,7 +152,7 @@ def render_episode(args: argparse.Namespace) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
         staging = Path(tmp) / f"partial{out.suffix}"
-        imageio.mimwrite(staging, frames, fps=args.fps)
+        imageio.mimwrite(staging, np.stack(frames), fps=args.fps)
         staging.replace(out)
     env.physics.free()  # release the GL context now, not in dm_control's atexit hook
     return 0
