@@ -138,7 +138,8 @@ def render_episode(args: argparse.Namespace) -> int:
                            scene_callback=mark_target)
     camera.set_pose(**top_down_pose(env.task.anatomy.vessel.centerline.nodes))
 
-    frames, total, step = [], 0.0, 0
+    frames: list[Any] = []
+    total, step = 0.0, 0
     while True:
         reward = 0.0 if timestep.reward is None else float(timestep.reward)
         total += reward
@@ -152,7 +153,7 @@ def render_episode(args: argparse.Namespace) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
         staging = Path(tmp) / f"partial{out.suffix}"
-        imageio.mimwrite(staging, np.stack(frames), fps=args.fps)
+        imageio.mimwrite(staging, frames, fps=args.fps)
         staging.replace(out)
     env.physics.free()  # release the GL context now, not in dm_control's atexit hook
     return 0
