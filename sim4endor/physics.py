@@ -1,12 +1,16 @@
 """``GuidewirePhysics``: dm_control Physics of a guidewire scene with named SI accessors.
 
-Example:
-    >>> from sim4endor import vessels
-    >>> from sim4endor.physics import GuidewirePhysics
-    >>> physics = GuidewirePhysics.from_vessel(vessels.load("simplified_phantom"))  # doctest: +SKIP
-    >>> physics.apply_increments(0.001, 0.0, duration=0.05)   # 1 mm forward in one 50 ms step
-    >>> with physics.reset_context(): pass
-    >>> physics.tip_position(), physics.wall_contact_force()
+Example (one 50 ms control step of 1 mm forward, then read the state)::
+
+    from sim4endor import vessels
+    from sim4endor.models.scene import config_for_vessel
+    from sim4endor.physics import GuidewirePhysics
+
+    vessel = vessels.load("simplified_phantom")
+    physics = GuidewirePhysics.from_vessel(vessel, config_for_vessel(vessel))
+    physics.apply_increments(0.001, 0.0, duration=0.05)
+    physics.step(10)                      # 10 x 5 ms
+    physics.tip_position(), physics.wall_contact_force()
 
 Every element is addressed by its name from :mod:`sim4endor.models.constants`.
 """
