@@ -8,7 +8,7 @@ deep generations can break the law); branching angles follow Murray's minimum-wo
 curvature: the curvature vector (in the rotation-minimising frame) is Gaussian-filtered white
 noise with a given RMS and correlation length, capped so the tube never folds. A child that
 would come closer than ``clearance`` to another part of the tree (away from its own junction),
-or cross behind the inlet plane where the introducer sheath sits, is redrawn; after
+or pass behind the inlet close to the introducer sheath's axis, is redrawn; after
 ``attempts`` failures it is left out (that junction then just continues as one vessel).
 """
 
@@ -56,6 +56,8 @@ class CoronaryTreeConfig:
         max_curvature_ratio: Cap on curvature × local radius (< 1 or the tube folds).
         clearance: Smallest wall-to-wall gap between lumens away from junctions (m); two wall
             thicknesses keep the walls built around them apart.
+        inlet_keep_out: Radius around the axis behind the inlet plane (where the introducer
+            sheath sits) that branches keep out of (m), in addition to ``clearance``.
         attempts: Redraws of a child before it is left out.
         resolution: Mesh and centerline sampling.
     """
@@ -74,6 +76,7 @@ class CoronaryTreeConfig:
     curvature_length: float = 6e-3
     max_curvature_ratio: float = 0.4
     clearance: float = 1.6e-3
+    inlet_keep_out: float = 3e-3
     attempts: int = 30
     resolution: MeshResolution = field(default_factory=MeshResolution)
 
@@ -87,7 +90,8 @@ class CoronaryTreeConfig:
             (0 < self.asymmetry[0] <= self.asymmetry[1] <= 1, "asymmetry must be within (0, 1]"),
             (self.curvature_rms >= 0 and self.curvature_length > 0, "curvature must be >= 0"),
             (0 < self.max_curvature_ratio < 1, "max_curvature_ratio must be in (0, 1)"),
-            (self.clearance >= 0 and self.attempts >= 1, "clearance >= 0, attempts >= 1"),
+            (min(self.clearance, self.inlet_keep_out) >= 0, "clearance and inlet_keep_out >= 0"),
+            (self.attempts >= 1, "attempts must be >= 1"),
         )
         for ok, message in checks:
             if not ok:
@@ -145,8 +149,11 @@ def tortuous_path(length: float, radius: float, config: CoronaryTreeConfig,
 def _fits(plans: list[BranchPlan], candidate: BranchPlan, config: CoronaryTreeConfig) -> bool:
     trial = [*plans, candidate]
     branches = [plan.sample(_CHECK_SPACING) for plan in trial]
-    if np.any(branches[-1].points[1:, 0] < branches[-1].radii[1:] + config.clearance):
-        return False  # behind the inlet plane, where the sheath is
+    points, radii = branches[-1].points[1:], branches[-1].radii[1:]
+    behind = points[:, 0] < radii + config.clearance
+    if np.any(np.hypot(points[behind, 1], points[behind, 2])
+              < config.inlet_keep_out + radii[behind] + config.clearance):
+        return False  # around the axis behind the inlet, where the introducer sheath is
     graph = centerline_graph(branches, {})
     own = np.flatnonzero(graph.branch == len(trial) - 1)
     return len(clearance_violations(graph, config.clearance, nodes=own)) == 0
@@ -190,23 +197,31 @@ def coronary_tree(config: CoronaryTreeConfig = CoronaryTreeConfig(), seed: int =
 
 def _grow_children(plans: list[BranchPlan], index: int, config: CoronaryTreeConfig,
                    rng: np.random.Generator) -> int:
-    """Appends up to two children of ``plans[index]``; returns how many were placed."""
+    """Appends up to two children of ``plans[index]``; returns how many were placed.
+
+    The first child's bifurcation plane (roll) is redrawn on every attempt; the second child
+    starts on the opposite side of that plane and spreads out to any roll in its later attempts.
+    """
     parent = plans[index]
     end = parent.end()
     asymmetry = rng.uniform(*config.asymmetry)
     r1, r2, angle1, angle2 = murray_split(parent.radius_end, asymmetry, config.murray_exponent)
-    roll = rng.uniform(0.0, 360.0)
+    plane = rng.uniform(0.0, 360.0)
     placed = 0
-    for k, (radius, angle, side) in enumerate(((r1, angle1, 0.0), (r2, angle2, 180.0))):
+    for k, (radius, angle) in enumerate(((r1, angle1), (r2, angle2))):
         radius = max(radius, config.min_radius)
         name = f"{parent.name}.{k}"
-        for _ in range(config.attempts):
+        for attempt in range(config.attempts):
+            if k == 0:
+                roll = rng.uniform(0.0, 360.0)
+            else:
+                spread = 20.0 if attempt < config.attempts // 2 else 90.0
+                roll = plane + 180.0 + spread * rng.standard_normal()
             length = parent.length * rng.uniform(*config.length_ratio)
             jitter = config.angle_jitter_deg * rng.standard_normal()
-            turn = max(config.min_angle_deg, angle + jitter)
             candidate = BranchPlan(
                 name,
-                end.turned(turn, roll + side + 20.0 * rng.standard_normal()),
+                end.turned(max(config.min_angle_deg, angle + jitter), roll),
                 tortuous_path(length, radius, config, rng),
                 radius,
                 max(config.taper * radius, config.min_radius),
@@ -214,6 +229,7 @@ def _grow_children(plans: list[BranchPlan], index: int, config: CoronaryTreeConf
             )
             if _fits(plans, candidate, config):
                 plans.append(candidate)
+                plane = roll if k == 0 else plane
                 placed += 1
                 break
         else:

@@ -160,6 +160,10 @@ def trace(start: Frame, segments: Sequence[Segment], spacing: float) -> tuple[Fl
     pieces = [start.position[None, :]]
     frame = start
     for segment in segments:
+        if segment.length < 0:
+            raise GeneratorConfigError(f"Path segment {segment} has a negative length.")
+        if segment.length == 0:
+            continue
         points, frame = segment.trace(frame, spacing)
         pieces.append(points)
     return np.vstack(pieces), frame
