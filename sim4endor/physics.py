@@ -138,13 +138,17 @@ class GuidewirePhysics(dm_mujoco.Physics):
         wire, wall = indices.wire_geoms, indices.wall_geoms
         g1, g2 = contacts.geom1[: data.ncon], contacts.geom2[: data.ncon]
         hits = np.flatnonzero((wire[g1] & wall[g2]) | (wire[g2] & wall[g1]))
-        hits = hits[contacts.efc_address[hits] >= 0]
-        forces = np.zeros(len(hits))
-        wrench = np.zeros(6)
-        for k, index in enumerate(hits):
-            mujoco.mj_contactForce(model, data, int(index), wrench)
-            forces[k] = wrench[0]
-        return forces
+        address = contacts.efc_address[hits]
+        hits, address = hits[address >= 0], address[address >= 0]
+        if model.opt.cone != mujoco.mjtCone.mjCONE_PYRAMIDAL:
+            return data.efc_force[address].copy()
+        # A pyramidal contact's normal force is the sum of its 2(dim-1) edge forces (as in
+        # mj_contactForce, vectorised); a frictionless contact has one row.
+        rows = np.maximum(2 * (contacts.dim[hits] - 1), 1)
+        offsets = np.arange(rows.max(initial=1))
+        mask = offsets[None, :] < rows[:, None]
+        index = np.where(mask, address[:, None] + offsets[None, :], 0)
+        return np.where(mask, data.efc_force[index], 0.0).sum(axis=1)
 
     def wall_contact_force(self) -> float:
         """Total normal force of all wire–vessel-wall contacts (N), the task's safety signal."""

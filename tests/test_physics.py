@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 import pytest
 from guidewire_helpers import write_tube_vessel
@@ -107,3 +108,20 @@ def test_same_commands_give_identical_trajectories(tube: Vessel) -> None:
             physics.step(10)
         runs.append(physics.data.qpos.copy())
     np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_vectorised_wall_forces_match_mujoco_contact_force(tube: Vessel) -> None:
+    physics = GuidewirePhysics.from_vessel(tube)
+    _drive(physics, 0.07, 0.3, 3.0)
+    forces = physics.wall_contact_forces()
+    assert len(forces) > 0
+    model, data = physics.model.ptr, physics.data.ptr
+    expected, wrench = [], np.zeros(6)
+    walls = {mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"vessel/wall_{k:03d}")
+             for k in range(13)}
+    for i in range(data.ncon):
+        contact = data.contact[i]
+        if {int(contact.geom1), int(contact.geom2)} & walls:
+            mujoco.mj_contactForce(model, data, i, wrench)
+            expected.append(wrench[0])
+    np.testing.assert_allclose(np.sort(forces), np.sort(expected), rtol=1e-9, atol=1e-12)
