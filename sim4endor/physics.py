@@ -49,11 +49,15 @@ class _Indices:
 class GuidewirePhysics(dm_mujoco.Physics):
     """Physics of a wire on a robot driver, optionally inside a vessel.
 
-    ``legacy_step`` is off: :meth:`step` is a plain ``mj_step``, so after a step the contact
-    list and the constraint forces describe the same (start-of-step) state. dm_control's
-    ``control.Environment`` sets this attribute from its own ``legacy_step`` argument (default
-    True): pass ``legacy_step=False`` there. With legacy stepping the contact forces are
-    recomputed on demand (correct, but costs about one constraint solve per query).
+    Both stepping modes give consistent readings:
+
+    * ``legacy_step = False`` (this class's default): :meth:`step` is a plain ``mj_step``.
+      Afterwards all accessors (positions, velocities, contacts, forces) describe the state at
+      the start of the last physics step, one time step (5 ms) behind ``qpos``.
+    * ``legacy_step = True`` (what dm_control's ``control.Environment`` sets unless given
+      ``legacy_step=False``): positions and contacts are current; the contact forces are then
+      recomputed for the current contacts on demand (measured: the force query costs about 7 %
+      of a 10-substep control step instead of 3 %).
     """
 
     legacy_step = False
