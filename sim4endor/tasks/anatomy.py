@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from sim4endor import vessels
-from sim4endor.models.scene import SceneConfig, build_model
+from sim4endor.models.scene import SceneConfig, build_model, config_for_vessel
 from sim4endor.tasks.config import TaskConfigError
 from sim4endor.vessels import Vessel
 
@@ -36,15 +36,24 @@ class Anatomy:
 
 
 def compile_anatomy(
-    vessel: str | Path | Vessel, scene: SceneConfig | None = None
+    vessel: str | Path | Vessel, scene: SceneConfig | None = None, fit: bool = True
 ) -> Anatomy:
     """Loads a vessel (name, folder or :class:`Vessel`) and compiles its scene.
 
     The scene module caches compiled models per (vessel folder, scene config), so calling
     this again for the same anatomy does not recompile.
+
+    Args:
+        vessel: Vessel name, folder or loaded vessel.
+        scene: Wire, driver and timestep (defaults: :class:`SceneConfig`).
+        fit: Fit the insertion range and wire length to the deepest target (fewer segments,
+            faster) and the tip bend to the narrowest lumen
+            (:func:`sim4endor.models.scene.config_for_vessel`). Pools of anatomies pass
+            ``False`` so every member has the same wire, hence the same observation sizes.
     """
     vessel = vessel if isinstance(vessel, Vessel) else vessels.load(vessel)
-    model = build_model(vessel, scene or SceneConfig())
+    config = scene or SceneConfig()
+    model = build_model(vessel, config_for_vessel(vessel, config) if fit else config)
     return Anatomy(key=str(vessel.root), vessel=vessel, model=model)
 
 

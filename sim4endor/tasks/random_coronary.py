@@ -56,7 +56,7 @@ def build_member(seed: int, cache_dir: Path) -> Anatomy:
             source=tree.description,
             progress=False,
         )
-    return compile_anatomy(folder)
+    return compile_anatomy(folder, fit=False)
 
 
 def pool(size: int, seed: int, cache_dir: Path | None = None) -> AnatomyPool:
