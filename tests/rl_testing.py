@@ -19,6 +19,7 @@ TINY = (
     "collector.init_random_frames=100",
     "optim.updates_per_batch=20",
     "network.hidden_sizes=[32, 32]",
+    "network.observation_scale=[]",  # the default scales fit the 6-entry guidewire state
     "replay.size=1000",
     "eval.interval_frames=100",
     "eval.trials=2",

@@ -71,3 +71,13 @@ def test_save_and_load_round_trip(tmp_path: Path) -> None:
     config = apply_overrides(default_config("ppo"), ["ppo.epochs=3", "env.task=task_b"])
     save_config(config, tmp_path / "config.yaml")
     assert load_config(tmp_path / "config.yaml") == config
+
+
+def test_observation_scale_must_match_the_observation() -> None:
+    from torchrl.envs import GymEnv
+
+    from sim4endor.rl.algorithms import build_agent
+
+    env = GymEnv("Pendulum-v1")  # 3 observation entries; the default has 6 factors
+    with pytest.raises(ConfigError, match=r"observation_scale has 6 factors.*3 entries"):
+        build_agent(default_config("ddpg"), env.observation_spec, env.action_spec)

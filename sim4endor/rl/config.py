@@ -99,10 +99,16 @@ class NetworkConfig:
     Attributes:
         hidden_sizes: width of each hidden layer.
         activation: ``relu`` or ``tanh``.
+        observation_scale: fixed factors multiplying the observation before the first layer
+            (empty: none). The tasks' state is in SI units, so raw inputs are ~1e-2; the
+            defaults bring the tip position (m, phantoms ~0.1 m across) and the tip velocity
+            (m/s, top insertion speed 0.03 m/s) to O(1): ×20 and ×30. The scaling lives inside
+            the networks, so an exported policy still takes SI inputs.
     """
 
     hidden_sizes: tuple[int, ...] = (256, 256)
     activation: Literal["relu", "tanh"] = "relu"
+    observation_scale: tuple[float, ...] = (20.0, 20.0, 20.0, 30.0, 30.0, 30.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -258,7 +264,8 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
     if origin is tuple:
         if not isinstance(value, list | tuple):
             raise ConfigError(f"{where} must be a list, got {value!r}.")
-        return tuple(int(v) for v in value)
+        item = typing.get_args(hint)[0]
+        return tuple(_coerce(v, item, f"{where}[{i}]") for i, v in enumerate(value))
     try:
         if hint is bool:
             return bool(value)

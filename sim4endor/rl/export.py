@@ -72,18 +72,26 @@ def export_policy(
     onnx: bool = False,
     make_env: EnvFactory | None = None,
 ) -> list[Path]:
-    """Writes ``policy.pt`` (TorchScript), ``policy.json`` (contract), optionally ONNX.
+    """Exports the latest policy of a training run (see :func:`export_agent`).
 
     Args:
         run_dir: a training run folder.
         out_dir: folder for the exported files.
-        onnx: also export ONNX (needs the ``onnx`` and ``onnxscript`` packages).
+        onnx: also export ONNX (needs the ``onnx`` extra).
         make_env: ``seed -> env`` factory; defaults to the run's task (read for the specs).
-
-    Returns:
-        The written paths.
     """
     config, agent = load_agent(run_dir, make_env)
+    return export_agent(config, agent, out_dir, onnx=onnx)
+
+
+def export_agent(
+    config: TrainConfig, agent: Agent, out_dir: Path, *, onnx: bool = False
+) -> list[Path]:
+    """Writes ``policy.pt`` (TorchScript), ``policy.json`` (contract) and optionally ONNX.
+
+    Returns:
+        The written paths: ``policy.pt``, ``policy.json`` and, if asked, ``policy.onnx``.
+    """
     policy = deterministic_policy(config, agent)
     obs_dim = next(policy.body.parameters()).shape[-1]  # type: ignore[union-attr]
     example = torch.zeros(1, obs_dim)
@@ -99,7 +107,8 @@ def export_policy(
         "algorithm": config.algorithm,
         "domain": config.env.domain,
         "task": config.env.task,
-        "input": "observation float32 (..., 6): tip position [m] (3), tip velocity [m/s] (3)",
+        "input": f"observation float32 (..., {obs_dim}); the tasks' default state is "
+        "[tip position [m] (3), tip velocity [m/s] (3)]",
         "output": "action float32 (..., 2): [delta_insertion, delta_rotation] in [-1, 1]",
         "scaling": "multiply by ActionConfig.max_insertion_step [m] and max_rotation_step [rad]",
     }

@@ -7,12 +7,13 @@ actors end in a tanh so their output always lies inside the action spec's bounds
 
 from __future__ import annotations
 
+import torch
 from tensordict.nn import NormalParamExtractor, TensorDictModule, TensorDictSequential
 from torch import nn
 from torchrl.data import TensorSpec
 from torchrl.modules import MLP, ProbabilisticActor, TanhModule, TanhNormal, ValueOperator
 
-from sim4endor.rl.config import NetworkConfig
+from sim4endor.rl.config import ConfigError, NetworkConfig
 
 OBSERVATION_KEY = "observation"
 ACTION_KEY = "action"
@@ -20,14 +21,47 @@ ACTION_KEY = "action"
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh}
 
 
-def mlp(in_features: int, out_features: int, config: NetworkConfig) -> MLP:
-    """Returns an MLP with ``config``'s hidden sizes and activation."""
-    return MLP(
+class ScaledMLP(nn.Module):
+    """Concatenates its inputs, multiplies them by fixed factors, then runs an MLP."""
+
+    scale: torch.Tensor
+
+    def __init__(self, scale: torch.Tensor, net: MLP) -> None:
+        super().__init__()
+        self.register_buffer("scale", scale)
+        self.net = net
+
+    def forward(self, *inputs: torch.Tensor) -> torch.Tensor:
+        return self.net(torch.cat(inputs, dim=-1) * self.scale)
+
+
+def mlp(
+    in_features: int, out_features: int, config: NetworkConfig, obs_dim: int | None = None
+) -> ScaledMLP:
+    """An MLP with ``config``'s hidden sizes and activation, reading ``in_features`` inputs
+    whose first ``obs_dim`` (default: all) are the observation, scaled by
+    ``config.observation_scale``.
+
+    Raises:
+        ConfigError: when ``observation_scale`` does not have one factor per observation entry.
+    """
+    obs_dim = in_features if obs_dim is None else obs_dim
+    scale = torch.ones(in_features)
+    if config.observation_scale:
+        if len(config.observation_scale) != obs_dim:
+            raise ConfigError(
+                f"network.observation_scale has {len(config.observation_scale)} factors but the "
+                f"observation has {obs_dim} entries; set network.observation_scale=[] or give "
+                f"{obs_dim} factors."
+            )
+        scale[:obs_dim] = torch.tensor(config.observation_scale)
+    net = MLP(
         in_features=in_features,
         out_features=out_features,
         num_cells=list(config.hidden_sizes),
         activation_class=_ACTIVATIONS[config.activation],
     )
+    return ScaledMLP(scale, net)
 
 
 def deterministic_actor(
@@ -64,9 +98,8 @@ def stochastic_actor(
 
 def action_value(obs_dim: int, action_dim: int, config: NetworkConfig) -> ValueOperator:
     """Q(s, a) critic of DDPG and SAC."""
-    # torchrl's MLP concatenates several inputs itself.
     return ValueOperator(
-        mlp(obs_dim + action_dim, 1, config), in_keys=[OBSERVATION_KEY, ACTION_KEY]
+        mlp(obs_dim + action_dim, 1, config, obs_dim), in_keys=[OBSERVATION_KEY, ACTION_KEY]
     )
 
 
