@@ -58,6 +58,9 @@ def test_increments_are_limited_by_speed_and_range(tube: Vessel) -> None:
     assert applied[0] == pytest.approx(-v_ins * 0.05)
     applied = physics.apply_increments(-1.0, 0.0, duration=0.05)
     assert applied[0] == 0.0  # insertion range starts at 0
+    physics.set_driver_targets(1.0, -100.0)
+    driver = SceneConfig().driver
+    assert physics.driver_targets() == pytest.approx((driver.max_insertion, -driver.max_rotation))
     with pytest.raises(ValueError, match="finite"):
         physics.set_driver_targets(float("nan"), 0.0)
 
