@@ -132,7 +132,7 @@ def render_episode(args: argparse.Namespace) -> int:
     timestep = env.reset()
 
     def mark_target(_physics: Any, scene: mujoco.MjvScene) -> None:
-        add_sphere(scene, env.task.target_position, 1.0e-3, TARGET_RGBA)
+        add_sphere(scene, env.task.target_position, 2.0e-3, TARGET_RGBA)
 
     camera = MovableCamera(env.physics, height=args.height, width=args.width,
                            scene_callback=mark_target)

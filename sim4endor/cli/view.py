@@ -149,7 +149,7 @@ def run_viewer(args: argparse.Namespace) -> int:
             with viewer.lock():
                 session.tick()
                 viewer.user_scn.ngeom = 0
-                add_sphere(viewer.user_scn, env.task.target_position, 1.0e-3, TARGET_RGBA)
+                add_sphere(viewer.user_scn, env.task.target_position, 2.0e-3, TARGET_RGBA)
                 viewer.set_texts((mujoco.mjtFontScale.mjFONTSCALE_150,
                                   mujoco.mjtGridPos.mjGRID_TOPLEFT, "sim4endor",
                                   session.status()))
