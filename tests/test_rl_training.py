@@ -97,3 +97,10 @@ def test_several_envs_use_a_multi_process_collector(tmp_path: Path) -> None:
     config = tiny_config("sac", "env.num_envs=2")
     metrics = train(config, tmp_path, make_env=pendulum_env, progress=False)
     assert metrics["frames"] == 200
+
+
+def test_tensorboard_logger_writes_event_files(tmp_path: Path) -> None:
+    pytest.importorskip("tensorboard", reason="the tensorboard extra is not installed")
+    config = tiny_config("ddpg", "logger.backend=tensorboard", "collector.total_frames=100")
+    train(config, tmp_path, make_env=pendulum_env, progress=False)
+    assert list((tmp_path / "logs").glob("events.out.tfevents.*"))

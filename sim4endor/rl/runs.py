@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-import torch
+from torchrl.envs import EnvBase
 
 from sim4endor._atomic import atomic_write_text
 from sim4endor.rl import checkpoint
@@ -38,11 +38,15 @@ def load_agent(run_dir: Path, make_env: EnvFactory | None = None) -> tuple[Train
     config = run_config(run_dir)
     env = (make_env or env_factory(config.env))(config.seed + EVAL_SEED_OFFSET)
     try:
-        agent = build_agent(config, env.observation_spec, env.action_spec)
+        return config, _restored_agent(run_dir, config, env)
     finally:
         env.close()
+
+
+def _restored_agent(run_dir: Path, config: TrainConfig, env: EnvBase) -> Agent:
+    agent = build_agent(config, env.observation_spec, env.action_spec)
     checkpoint.load_checkpoint(run_dir, agent)
-    return config, agent
+    return agent
 
 
 def evaluate_run(
@@ -66,11 +70,11 @@ def evaluate_run(
     Returns:
         The metrics of :func:`sim4endor.rl.metrics.summarize` plus ``frames``.
     """
-    torch.set_num_threads(1)
-    config, agent = load_agent(run_dir, make_env)
+    config = run_config(run_dir)
     seed = config.seed + EVAL_SEED_OFFSET if seed is None else seed
     env = (make_env or env_factory(config.env))(seed)
     try:
+        agent = _restored_agent(run_dir, config, env)
         episodes = rollout_episodes(
             env,
             agent.actor,
