@@ -206,7 +206,9 @@ class _Loop:
         # Wall-clock time already added to Progress.wall_clock_s ends here.
         self.clock = time.monotonic()
 
-    def run(self, make_env: EnvFactory, state: checkpoint.Progress, progress: bool):
+    def run(
+        self, make_env: EnvFactory, state: checkpoint.Progress, progress: bool
+    ) -> checkpoint.Progress:
         cfg = self.config
         if state.frames >= cfg.collector.total_frames:
             return state
@@ -240,7 +242,7 @@ class _Loop:
         cfg = self.config
         flat = batch.reshape(-1)
         if cfg.algorithm == "ppo":
-            losses = self._ppo_update(flat)
+            losses = self._ppo_update(batch)
         else:
             assert self.replay is not None
             self.replay.extend(flat)
@@ -260,11 +262,13 @@ class _Loop:
             frames, state.episodes + done, state.updates + len(losses), state.wall_clock_s + elapsed
         )
 
-    def _ppo_update(self, flat: TensorDictBase) -> list[dict[str, float]]:
+    def _ppo_update(self, batch: TensorDictBase) -> list[dict[str, float]]:
         ppo = self.config.ppo
         assert self.agent.advantage is not None
+        # GAE runs along time (the last batch dim) before several envs' batches are flattened.
         with torch.no_grad():
-            self.agent.advantage(flat)
+            batch = self.agent.advantage(batch)
+        flat = batch.reshape(-1)
         losses = []
         for _ in range(ppo.epochs):
             for index in torch.randperm(flat.numel()).split(ppo.minibatch_size):

@@ -1,0 +1,81 @@
+"""Training cost per algorithm: environment steps/s, gradient steps/s, and the extrapolated
+wall-clock of one 100k-step run with the paper's settings (one process, one torch thread).
+
+    python experiments/benchmarks/training_speed.py [--domain simplified_phantom]
+        [--task task_a] [--frames 400] [--updates 300] [--json]
+
+Timings taken while other jobs share the CPU are pessimistic; the script prints the load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import torch
+from torchrl.envs import ExplorationType, set_exploration_type
+
+from sim4endor.rl.algorithms import build_agent
+from sim4endor.rl.config import ALGORITHMS, TrainConfig, default_config
+from sim4endor.rl.envs import sim4endor_env
+from sim4endor.rl.trainer import _replay_buffer
+
+
+def gradient_steps_per_s(config: TrainConfig, env, updates: int) -> float:
+    """Gradient steps/s on batches drawn from a random-policy replay (PPO: minibatches)."""
+    agent = build_agent(config, env.observation_spec, env.action_spec)
+    with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
+        data = env.rollout(max(config.optim.batch_size, config.ppo.minibatch_size) * 2,
+                           agent.exploration_policy, break_when_any_done=False)
+    if config.algorithm == "ppo":
+        with torch.no_grad():
+            agent.advantage(data)
+        sample = lambda: data[torch.randint(data.numel(), (config.ppo.minibatch_size,))]  # noqa: E731
+    else:
+        replay = _replay_buffer(config)
+        replay.extend(data)
+        sample = replay.sample
+    start = time.perf_counter()
+    for _ in range(updates):
+        agent.update(sample(), config.optim.max_grad_norm)
+    return updates / (time.perf_counter() - start)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--domain", default="simplified_phantom")
+    parser.add_argument("--task", default="task_a")
+    parser.add_argument("--frames", type=int, default=400, help="env steps timed")
+    parser.add_argument("--updates", type=int, default=300, help="gradient steps timed")
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    torch.manual_seed(0)
+    env = sim4endor_env(args.domain, args.task, "manifold", 0)
+    start = time.perf_counter()
+    env.rollout(args.frames, break_when_any_done=False)
+    env_rate = args.frames / (time.perf_counter() - start)
+    report = {"load_average_1min": os.getloadavg()[0], "env_steps_per_s": round(env_rate, 1)}
+    for algorithm in ALGORITHMS:
+        config = default_config(algorithm)
+        rate = gradient_steps_per_s(config, env, args.updates)
+        frames = config.collector.total_frames
+        if algorithm == "ppo":
+            batches = frames / config.collector.frames_per_batch
+            steps = batches * config.ppo.epochs * config.collector.frames_per_batch
+            updates = steps / config.ppo.minibatch_size
+        else:
+            updates = frames - config.collector.init_random_frames
+        report[f"{algorithm}_grad_steps_per_s"] = round(rate, 1)
+        report[f"{algorithm}_100k_run_min"] = round((frames / env_rate + updates / rate) / 60, 1)
+    if args.json:
+        print(json.dumps(report))
+    else:
+        for key, value in report.items():
+            print(f"{key:<28} {value}")
+
+
+if __name__ == "__main__":
+    main()
