@@ -1,0 +1,126 @@
+"""Build checks: the lumen stays open and the wall is closed.
+
+* Lumen open: the centerline is sampled every ``probe_spacing`` radii; a probe is open when no
+  hull comes within ``clearance`` × R of it. The distance to a hull is bounded from below by
+  ``max_i(n_i·p + d_i)`` over its half-spaces, so the check is conservative (it can only call a
+  probe blocked that is open, never the reverse). Probes within ``end_margin`` radii of a
+  terminal node are skipped: a capped vessel end is walled, and the graph's last node may sit
+  on the cap.
+* Wall closed: every lumen vertex and face centre is moved outward by half the wall thickness;
+  such a probe must lie inside some hull, otherwise a wire could slip between hulls there.
+  Probes on the open inlet (faces without a wall) are skipped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from sim4endor.vessels.axis import AxisSamples
+from sim4endor.vessels.walls import Hull
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class CheckParams:
+    """Check settings (dimensionless, in local lumen radii unless named).
+
+    Attributes:
+        clearance: Radius of the sphere around each centerline probe that must stay hull-free.
+        probe_spacing: Centerline probe spacing.
+        end_margin: Probes this close to a terminal node (arc length) are skipped.
+        min_lumen_open: Acceptance threshold for the open fraction.
+        min_wall_closed: Acceptance threshold for the closed fraction.
+    """
+
+    clearance: float = 0.4
+    probe_spacing: float = 0.25
+    end_margin: float = 1.0
+    min_lumen_open: float = 0.99
+    min_wall_closed: float = 0.95
+
+
+def _hull_spheres(hulls: Sequence[Hull]) -> tuple[FloatArray, FloatArray]:
+    centres = np.array([h.vertices.mean(axis=0) for h in hulls])
+    radii = np.array(
+        [np.linalg.norm(h.vertices - c, axis=1).max() for h, c in zip(hulls, centres, strict=True)]
+    )
+    return centres, radii
+
+
+def hull_distance_bound(hulls: Sequence[Hull], points: FloatArray, reach: float) -> FloatArray:
+    """Returns, per point, a lower bound of the distance to the nearest hull (negative inside).
+
+    Hulls farther than ``reach`` (m) from a point are ignored; such points get ``inf``.
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    best = np.full(len(points), np.inf)
+    if not hulls or len(points) == 0:
+        return best
+    centres, radii = _hull_spheres(hulls)
+    tree = cKDTree(points)
+    for hull, centre, radius in zip(hulls, centres, radii, strict=True):
+        near = tree.query_ball_point(centre, radius + reach)
+        if not near:
+            continue
+        idx = np.asarray(near, dtype=np.int64)
+        side = points[idx] @ hull.equations[:, :3].T + hull.equations[:, 3]
+        best[idx] = np.minimum(best[idx], side.max(axis=1))
+    return best
+
+
+def lumen_probes(axis: AxisSamples, params: CheckParams) -> tuple[FloatArray, FloatArray]:
+    """Returns centerline probe points and their radii (m), every ``probe_spacing`` radii."""
+    keep = axis.end_distance > params.end_margin * axis.radius
+    # Axis samples are denser than the probe spacing; thin them by arc position in radii.
+    bins = np.floor(axis.u / params.probe_spacing).astype(np.int64)
+    key = np.column_stack([axis.branch, bins])
+    _, first = np.unique(key, axis=0, return_index=True)
+    chosen = np.zeros(len(axis.u), dtype=bool)
+    chosen[first] = True
+    chosen &= keep
+    return axis.points[chosen], axis.radius[chosen]
+
+
+def lumen_open_fraction(
+    hulls: Sequence[Hull], axis: AxisSamples, params: CheckParams
+) -> tuple[float, int]:
+    """Returns the fraction of centerline probes with no hull within ``clearance`` R, and count."""
+    points, radii = lumen_probes(axis, params)
+    if len(points) == 0:
+        return 1.0, 0
+    bound = hull_distance_bound(hulls, points, reach=params.clearance * float(radii.max()))
+    return float(np.mean(bound >= params.clearance * radii)), len(points)
+
+
+def wall_probes(
+    vertices: FloatArray,
+    faces: NDArray[np.int64],
+    vertex_normals: FloatArray,
+    face_normals: FloatArray,
+    walled: NDArray[np.bool_],
+    thickness: float,
+) -> FloatArray:
+    """Returns points half a wall thickness outside the lumen surface of walled faces."""
+    faces = faces[walled]
+    verts = np.unique(faces)
+    centres = vertices[faces].mean(axis=1)
+    return np.vstack(
+        [
+            vertices[verts] + 0.5 * thickness * vertex_normals[verts],
+            centres + 0.5 * thickness * face_normals[walled],
+        ]
+    )
+
+
+def wall_closed_fraction(hulls: Sequence[Hull], probes: FloatArray, slack: float) -> float:
+    """Returns the fraction of wall probes inside some hull (within ``slack`` metres)."""
+    if len(probes) == 0:
+        return 1.0
+    bound = hull_distance_bound(hulls, probes, reach=slack)
+    return float(np.mean(bound <= slack))

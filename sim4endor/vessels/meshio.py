@@ -1,0 +1,288 @@
+"""Reading, validating and repairing lumen (blood-pool) surface meshes.
+
+Documented repairs (each is counted in :class:`RepairReport` and logged):
+
+* vertices closer than trimesh's merge tolerance are merged (OBJ/STL files often duplicate them);
+* degenerate faces (repeated vertices or zero area) and duplicate faces are removed;
+* small holes in the side wall (a boundary loop whose perimeter is below
+  ``max_hole_perimeter`` lumen radii and whose adjacent faces lie in the loop's plane) are closed
+  with a fan around the loop centroid;
+* with ``keep_largest=True`` every connected component but the largest is dropped.
+
+Everything else that makes a mesh unusable raises :class:`MeshInputError` naming the file and the
+fix: an empty or unreadable file, large holes, several components (without ``keep_largest``), or
+an absurd lumen radius for the declared units.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import trimesh
+from numpy.typing import NDArray
+
+from sim4endor.errors import Sim4EndoRError
+
+logger = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+Units = Literal["mm", "m"]
+
+SUPPORTED_SUFFIXES = (".stl", ".obj", ".ply", ".off")
+UNIT_SCALE: dict[str, float] = {"mm": 1e-3, "m": 1.0}
+#: Plausible lumen radii (m) of vessels a guidewire navigates: small coronary to large aorta.
+PLAUSIBLE_RADIUS = (0.2e-3, 30e-3)
+
+
+class MeshInputError(Sim4EndoRError, ValueError):
+    """Raised for an input mesh that cannot be turned into a vessel; names the file and fix."""
+
+
+@dataclass(frozen=True)
+class RepairReport:
+    """What :func:`prepare_lumen` changed in the input mesh.
+
+    Attributes:
+        merged_vertices: Duplicate vertices merged.
+        removed_faces: Degenerate or duplicate faces removed.
+        filled_holes: Small side-wall holes closed.
+        dropped_components: Face counts of components dropped by ``keep_largest``.
+        open_ends: Number of boundary loops kept open as vessel ends.
+    """
+
+    merged_vertices: int = 0
+    removed_faces: int = 0
+    filled_holes: int = 0
+    dropped_components: tuple[int, ...] = ()
+    open_ends: int = 0
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedLumen:
+    """A validated lumen mesh in model metres.
+
+    Attributes:
+        mesh: The repaired lumen surface (m), normals pointing out of the lumen.
+        scale: Factor from input units to metres.
+        radius_estimate: Median lumen radius (m) estimated from the surface.
+        end_loops: Vertex index loops of the open vessel ends.
+        report: The repairs made.
+    """
+
+    mesh: trimesh.Trimesh
+    scale: float
+    radius_estimate: float
+    end_loops: list[NDArray[np.int64]] = field(default_factory=list)
+    report: RepairReport = field(default_factory=RepairReport)
+
+
+def read_mesh(path: Path) -> trimesh.Trimesh:
+    """Reads a surface mesh file (STL, OBJ, PLY or OFF) without changing it."""
+    path = Path(path)
+    if not path.is_file():
+        raise MeshInputError(f"{path}: no such file. Pass the lumen surface mesh (STL/OBJ/PLY).")
+    if path.suffix.lower() not in SUPPORTED_SUFFIXES:
+        raise MeshInputError(
+            f"{path}: unsupported mesh format {path.suffix!r}; export the lumen surface as one of "
+            f"{', '.join(SUPPORTED_SUFFIXES)}."
+        )
+    if path.stat().st_size == 0:
+        raise MeshInputError(f"{path} is empty; export the lumen surface mesh again.")
+    try:
+        loaded = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many unrelated types for unparsable files
+        raise MeshInputError(
+            f"{path} could not be read as a {path.suffix[1:].upper()} mesh ({exc}); check that "
+            "it is a triangle surface mesh file."
+        ) from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise MeshInputError(f"{path} holds no triangles; export the lumen surface mesh again.")
+    return loaded
+
+
+def boundary_loops(mesh: trimesh.Trimesh) -> list[NDArray[np.int64]]:
+    """Returns the closed loops of boundary edges (edges with one face) as vertex index arrays."""
+    edges = mesh.edges_sorted
+    groups = trimesh.grouping.group_rows(edges, require_count=1)
+    if len(groups) == 0:
+        return []
+    # Directed boundary edges, in face order, so each loop is walked consistently.
+    directed = mesh.edges[np.asarray(groups).ravel()]
+    successor: dict[int, int] = {int(a): int(b) for a, b in directed}
+    loops: list[NDArray[np.int64]] = []
+    seen: set[int] = set()
+    for start in successor:
+        if start in seen:
+            continue
+        loop = [start]
+        seen.add(start)
+        cur = successor[start]
+        while cur != start and cur in successor and cur not in seen:
+            loop.append(cur)
+            seen.add(cur)
+            cur = successor[cur]
+        loops.append(np.asarray(loop, dtype=np.int64))
+    return loops
+
+
+def _loop_is_side_hole(mesh: trimesh.Trimesh, loop: NDArray[np.int64]) -> bool:
+    """True when the loop lies in the surface (a hole), False when it is a tube cross-section."""
+    points = mesh.vertices[loop]
+    centred = points - points.mean(axis=0)
+    plane_normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
+    faces = np.unique(
+        np.concatenate([mesh.vertex_faces[v][mesh.vertex_faces[v] >= 0] for v in loop])
+    )
+    alignment = np.abs(mesh.face_normals[faces] @ plane_normal)
+    return bool(np.median(alignment) > 0.7)
+
+
+def estimate_radius(mesh: trimesh.Trimesh, samples: int = 256, seed: int = 0) -> float:
+    """Estimates the median lumen radius: half the distance across the lumen along the normal.
+
+    Rays are cast inwards from a seeded sample of faces; works for open and capped meshes.
+    """
+    rng = np.random.default_rng(seed)
+    faces = rng.choice(len(mesh.faces), size=min(samples, len(mesh.faces)), replace=False)
+    origins = mesh.triangles_center[faces]
+    directions = -mesh.face_normals[faces]
+    scale = float(mesh.scale)
+    locations, ray_idx, tri_idx = mesh.ray.intersects_location(
+        origins + directions * 1e-6 * scale, directions, multiple_hits=True
+    )
+    if len(ray_idx) == 0:
+        return float(2.0 * abs(mesh.volume) / max(mesh.area, 1e-30))
+    dist = np.linalg.norm(locations - origins[ray_idx], axis=1)
+    valid = tri_idx != faces[ray_idx]
+    nearest = np.full(len(faces), np.inf)
+    np.minimum.at(nearest, ray_idx[valid], dist[valid])
+    nearest = nearest[np.isfinite(nearest)]
+    if len(nearest) == 0:
+        return float(2.0 * abs(mesh.volume) / max(mesh.area, 1e-30))
+    return float(0.5 * np.median(nearest))
+
+
+def _fill_loop(mesh: trimesh.Trimesh, loop: NDArray[np.int64]) -> trimesh.Trimesh:
+    centre = mesh.vertices[loop].mean(axis=0)
+    new_index = len(mesh.vertices)
+    # Boundary edges run with the faces; the fan runs against them so the patch matches winding.
+    fan = np.column_stack([np.roll(loop, -1), loop, np.full(len(loop), new_index)])
+    return trimesh.Trimesh(
+        vertices=np.vstack([mesh.vertices, centre]),
+        faces=np.vstack([mesh.faces, fan]),
+        process=False,
+    )
+
+
+def capped(prepared: PreparedLumen) -> trimesh.Trimesh:
+    """Returns the lumen with its open ends closed by fans (for voxelisation)."""
+    mesh = prepared.mesh
+    for loop in prepared.end_loops:
+        mesh = _fill_loop(mesh, loop)
+    return mesh
+
+
+def prepare_lumen(
+    mesh: trimesh.Trimesh,
+    *,
+    units: Units,
+    source: str = "<mesh>",
+    keep_largest: bool = False,
+    max_hole_perimeter: float = 3.0,
+) -> PreparedLumen:
+    """Validates and repairs a lumen mesh and converts it to metres.
+
+    Args:
+        mesh: The lumen surface in input units.
+        units: Units of ``mesh`` (``"mm"`` or ``"m"``).
+        source: Name of the input (file path) used in error messages.
+        keep_largest: Drop every connected component but the largest instead of failing.
+        max_hole_perimeter: Side-wall holes whose perimeter is below this many lumen radii are
+            filled; larger ones are errors.
+    """
+    if units not in UNIT_SCALE:
+        raise MeshInputError(f"units must be 'mm' or 'm', got {units!r}.")
+    work = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False)
+    if len(work.faces) == 0:
+        raise MeshInputError(f"{source} holds no triangles.")
+    if not np.all(np.isfinite(work.vertices)):
+        raise MeshInputError(f"{source} has non-finite vertex coordinates; re-export the mesh.")
+    n_vertices = len(work.vertices)
+    work.merge_vertices(merge_tex=True, merge_norm=True)
+    merged = n_vertices - len(work.vertices)
+    n_faces = len(work.faces)
+    area_tol = 1e-12 * float(work.scale) ** 2
+    keep = work.nondegenerate_faces(height=1e-10 * float(work.scale)) & (work.area_faces > area_tol)
+    work.update_faces(keep)
+    work.update_faces(work.unique_faces())
+    work.remove_unreferenced_vertices()
+    removed = n_faces - len(work.faces)
+    if len(work.faces) < 4:
+        raise MeshInputError(f"{source} has fewer than 4 usable triangles; it is not a vessel.")
+
+    components = work.split(only_watertight=False)
+    dropped: tuple[int, ...] = ()
+    if len(components) > 1:
+        sizes = sorted((len(c.faces) for c in components), reverse=True)
+        if not keep_largest:
+            raise MeshInputError(
+                f"{source} has {len(components)} disconnected parts (faces per part: {sizes}). "
+                "Export only the vessel lumen, or pass --keep-largest (keep_largest=True) to keep "
+                "the largest part."
+            )
+        work = max(components, key=lambda c: len(c.faces))
+        dropped = tuple(sizes[1:])
+        logger.info("%s: kept the largest component, dropped parts of %s faces", source, dropped)
+
+    scale = UNIT_SCALE[units]
+    work.apply_scale(scale)
+    trimesh.repair.fix_winding(work)
+    if work.is_watertight and work.volume < 0:
+        work.invert()
+
+    radius = estimate_radius(work)
+    if not PLAUSIBLE_RADIUS[0] <= radius <= PLAUSIBLE_RADIUS[1]:
+        other = "m" if units == "mm" else "mm"
+        raise MeshInputError(
+            f"{source}: with units={units!r} the median lumen radius is {radius * 1e3:.4g} mm, "
+            f"absurd for a vessel (expected {PLAUSIBLE_RADIUS[0] * 1e3:g}–"
+            f"{PLAUSIBLE_RADIUS[1] * 1e3:g} mm). If the mesh is in {other}, pass --units {other}."
+        )
+
+    filled = 0
+    end_loops: list[NDArray[np.int64]] = []
+    for loop in boundary_loops(work):
+        if len(loop) < 3:
+            raise MeshInputError(f"{source} has a non-manifold boundary; repair it in a mesh tool.")
+        points = work.vertices[loop]
+        perimeter = float(np.linalg.norm(points - np.roll(points, 1, axis=0), axis=1).sum())
+        if _loop_is_side_hole(work, loop):
+            if perimeter > max_hole_perimeter * radius:
+                raise MeshInputError(
+                    f"{source} has a hole in the vessel wall ({perimeter * 1e3:.3g} mm around, "
+                    f"near {np.round(points.mean(axis=0) / scale, 3).tolist()} in input units). "
+                    "Close it in the segmentation or a mesh tool (holes below "
+                    f"{max_hole_perimeter:g} lumen radii around are filled automatically)."
+                )
+            work = _fill_loop(work, loop)
+            filled += 1
+        else:
+            end_loops.append(loop)
+    if filled:
+        logger.info("%s: filled %d small hole(s) in the wall", source, filled)
+    if removed or merged:
+        logger.info("%s: merged %d vertices, removed %d bad faces", source, merged, removed)
+    report = RepairReport(
+        merged_vertices=merged,
+        removed_faces=removed,
+        filled_holes=filled,
+        dropped_components=dropped,
+        open_ends=len(end_loops),
+    )
+    return PreparedLumen(
+        mesh=work, scale=scale, radius_estimate=radius, end_loops=end_loops, report=report
+    )
