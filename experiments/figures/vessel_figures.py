@@ -3,14 +3,17 @@
 Usage:
     python experiments/figures/vessel_figures.py                    # the shipped phantoms
     python experiments/figures/vessel_figures.py my_vessel --out /tmp/figs
+    python experiments/figures/vessel_figures.py --coronary-seeds 0 1 2   # generated, unbuilt
 
-Reads built vessel folders through ``sim4endor.vessels.load`` (names or paths) and writes
-``<out>/<name>.png`` (default ``docs/figures``): a top view (x-y) and a 3D view, in mm.
+Reads built vessel folders through ``sim4endor.vessels.load`` (names or paths), or generates
+random coronary trees without building them, and writes ``<out>/<name>.png`` (default
+``docs/figures``): a top view (x-y) and a 3D view, in mm.
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Mapping
 from pathlib import Path
 
 import matplotlib
@@ -21,20 +24,35 @@ from matplotlib.collections import LineCollection, PolyCollection
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
 from sim4endor import vessels
+from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.generators import CoronaryTreeConfig, GeneratedAnatomy, coronary_tree
 
 REPO = Path(__file__).resolve().parents[2]
 LUMEN_FILE = "lumen.stl"
 TARGET_COLOURS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive")
 
 
-def draw(vessel: vessels.Vessel, out: Path) -> Path:
-    """Draws ``vessel`` and returns the PNG's path."""
-    lumen = trimesh.load(vessel.root / LUMEN_FILE, force="mesh")
+def draw_vessel(vessel: vessels.Vessel, out: Path) -> Path:
+    """Draws a built vessel folder and returns the PNG's path."""
+    return draw(vessel.name, trimesh.load(vessel.root / LUMEN_FILE, force="mesh"),
+                vessel.centerline, vessel.inlet_position, vessel.inlet_direction,
+                vessel.targets, f"{vessel.manifest.hull_count} wall hulls", out)
+
+
+def draw_generated(name: str, anatomy: GeneratedAnatomy, out: Path) -> Path:
+    """Draws a generated (not built) anatomy and returns the PNG's path."""
+    return draw(name, anatomy.lumen, anatomy.centerline, anatomy.inlet_position,
+                anatomy.inlet_direction, anatomy.targets,
+                f"{len(anatomy.lumen.faces)} lumen faces, not built", out)
+
+
+def draw(name: str, lumen: trimesh.Trimesh, graph: CenterlineGraph, inlet_position: np.ndarray,
+         direction: np.ndarray, targets: Mapping[str, np.ndarray], note: str, out: Path) -> Path:
+    """Draws a lumen with its centerline, inlet and targets; returns the PNG's path."""
     tri = np.asarray(lumen.triangles) * 1e3
-    graph = vessel.centerline
     segments = graph.nodes[graph.edges] * 1e3
-    inlet, direction = vessel.inlet_position * 1e3, vessel.inlet_direction
-    arrow = 0.1 * float(np.ptp(graph.nodes, axis=0).max()) * 1e3 * direction
+    inlet = inlet_position * 1e3
+    arrow = 0.1 * float(np.ptp(graph.nodes, axis=0).max()) * 1e3 * np.asarray(direction)
 
     fig = plt.figure(figsize=(13, 6))
     top = fig.add_subplot(1, 2, 1)
@@ -52,13 +70,13 @@ def draw(vessel: vessels.Vessel, out: Path) -> Path:
     view.add_collection3d(Line3DCollection(segments, colors="k", linewidths=1.0))
     view.quiver(*inlet, *arrow, color="tab:green", linewidth=2)
     view.scatter(*inlet, color="tab:green", s=40)
-    for (name, point), colour in zip(sorted(vessel.targets.items()), TARGET_COLOURS * 10,
-                                     strict=False):
+    for (target, point), colour in zip(sorted(targets.items()), TARGET_COLOURS * 10,
+                                       strict=False):
         p = point * 1e3
-        top.plot(*p[:2], "*", color=colour, ms=14, label=f"target {name}")
-        top.annotate(name, p[:2], textcoords="offset points", xytext=(6, 6), fontsize=12)
+        top.plot(*p[:2], "*", color=colour, ms=14, label=f"target {target}")
+        top.annotate(target, p[:2], textcoords="offset points", xytext=(6, 6), fontsize=12)
         view.scatter(*p, color=colour, marker="*", s=120)
-        view.text(*p, f" {name}", fontsize=11)
+        view.text(*p, f" {target}", fontsize=11)
     lo, hi = lumen.bounds * 1e3
     top.set(xlim=(lo[0] - 2, hi[0] + 2), ylim=(lo[1] - 2, hi[1] + 2), aspect="equal",
             xlabel="x (mm)", ylabel="y (mm)", title="top view (x-y)")
@@ -68,14 +86,13 @@ def draw(vessel: vessels.Vessel, out: Path) -> Path:
              zlim=(centre[2] - half, centre[2] + half), xlabel="x (mm)", ylabel="y (mm)",
              zlabel="z (mm)", title="3D view")
     view.view_init(elev=25, azim=-60)
-    m = vessel.manifest
     fig.suptitle(
-        f"{vessel.name}: lumen radius {graph.radii.min() * 1e3:.2f}-{graph.radii.max() * 1e3:.2f}"
-        f" mm, centerline {graph.total_length() * 1e3:.0f} mm, {m.hull_count} wall hulls"
+        f"{name}: lumen radius {graph.radii.min() * 1e3:.2f}-{graph.radii.max() * 1e3:.2f}"
+        f" mm, centerline {graph.total_length() * 1e3:.0f} mm, {note}"
     )
     fig.tight_layout()
     out.mkdir(parents=True, exist_ok=True)
-    path = out / f"{vessel.name}.png"
+    path = out / f"{name}.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
@@ -83,12 +100,20 @@ def draw(vessel: vessels.Vessel, out: Path) -> Path:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("vessels", nargs="*", default=["simplified_phantom", "vascular_phantom"])
+    parser.add_argument("vessels", nargs="*", help="vessel names or folders (default: the "
+                        "shipped phantoms, unless --coronary-seeds is given)")
+    parser.add_argument("--coronary-seeds", type=int, nargs="*", default=[],
+                        help="also draw generated random coronary trees of these seeds")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "figures")
     args = parser.parse_args()
     matplotlib.use("Agg")
-    for name in args.vessels:
-        print(draw(vessels.load(name), args.out))
+    names = args.vessels or ([] if args.coronary_seeds else ["simplified_phantom",
+                                                               "vascular_phantom"])
+    for name in names:
+        print(draw_vessel(vessels.load(name), args.out))
+    for seed in args.coronary_seeds:
+        anatomy = coronary_tree(CoronaryTreeConfig(), seed)
+        print(draw_generated(f"coronary_tree_seed{seed}", anatomy, args.out))
 
 
 if __name__ == "__main__":
