@@ -304,3 +304,29 @@ def test_overrides_parse_types_and_reject_unknown_keys() -> None:
         apply_overrides(CoronaryTreeConfig(), ["levels"])
     assert canonical_command("coronary_tree", 3, ["levels=2"]) == (
         "sim4endor vessel generate coronary_tree --seed 3 --set levels=2")
+
+
+def test_generate_parser_reads_the_documented_options() -> None:
+    import argparse
+
+    from sim4endor.vessels.generators.command import add_generate_parser, run_generate
+
+    parser = argparse.ArgumentParser()
+    add_generate_parser(parser.add_subparsers())
+    args = parser.parse_args(["generate", "coronary_tree", "--seed", "3", "--set", "levels=2",
+                              "--set", "curvature_rms=80", "--out", "trees/t3", "--no-cache"])
+    assert (args.generator, args.seed, args.overrides) == ("coronary_tree", 3,
+                                                           ["levels=2", "curvature_rms=80"])
+    assert str(args.out) == "trees/t3" and args.no_cache and args.func is run_generate
+    with pytest.raises(SystemExit):
+        parser.parse_args(["generate", "spaghetti"])
+
+
+def test_generate_vessel_rejects_bad_input_before_building(tmp_path) -> None:
+    from sim4endor.vessels.generators.command import generate_vessel
+
+    with pytest.raises(GeneratorConfigError, match="Unknown generator"):
+        generate_vessel("spaghetti", out_dir=tmp_path / "x")
+    with pytest.raises(GeneratorConfigError, match="no field"):
+        generate_vessel("coronary_tree", out_dir=tmp_path / "x", overrides=["depth=2"])
+    assert not (tmp_path / "x").exists()
