@@ -29,7 +29,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from sim4endor._atomic import atomic_write_bytes
-from sim4endor.cli.render import TARGET_RGBA, add_sphere, state_vector, status_text
+from sim4endor.cli.render import (
+    TARGET_RGBA,
+    add_sphere,
+    state_vector,
+    status_text,
+    top_down_pose,
+)
 
 if TYPE_CHECKING:
     from sim4endor.suite import NavigationEnvironment
@@ -142,21 +148,28 @@ def run_viewer(args: argparse.Namespace) -> int:
     session = TeleopSession(env, record=args.record is not None)
     physics = env.physics
     period = env.control_timestep()
-    with mujoco.viewer.launch_passive(physics.model.ptr, physics.data.ptr,
-                                      key_callback=session.on_key) as viewer:
-        while viewer.is_running():
-            started = time.monotonic()
-            with viewer.lock():
-                session.tick()
-                viewer.user_scn.ngeom = 0
-                add_sphere(viewer.user_scn, env.task.target_position, 2.0e-3, TARGET_RGBA)
+    try:
+        with mujoco.viewer.launch_passive(physics.model.ptr, physics.data.ptr,
+                                          key_callback=session.on_key) as viewer:
+            pose = top_down_pose(env.task.anatomy.vessel.centerline.nodes)
+            viewer.cam.lookat[:] = pose["lookat"]
+            viewer.cam.distance = pose["distance"]
+            viewer.cam.azimuth, viewer.cam.elevation = pose["azimuth"], pose["elevation"]
+            while viewer.is_running():
+                started = time.monotonic()
+                with viewer.lock():
+                    session.tick()
+                    viewer.user_scn.ngeom = 0
+                    add_sphere(viewer.user_scn, env.task.target_position, 2.0e-3, TARGET_RGBA)
+                # set_texts takes the viewer's lock itself: calling it under lock() deadlocks.
                 viewer.set_texts((mujoco.mjtFontScale.mjFONTSCALE_150,
                                   mujoco.mjtGridPos.mjGRID_TOPLEFT, "sim4endor",
                                   session.status()))
-            viewer.sync()
-            time.sleep(max(0.0, period - (time.monotonic() - started)))
-    if session.recording is not None:
-        session.recording.save(args.record)
+                viewer.sync()
+                time.sleep(max(0.0, period - (time.monotonic() - started)))
+    finally:  # also after Ctrl+C: a demonstration is worth keeping
+        if session.recording is not None:
+            session.recording.save(args.record)
     return 0
 
 
