@@ -1,5 +1,5 @@
-"""The shipped phantom folders: they load, compile, keep the lumen open and the wall closed, and
-are exactly what `sim4endor vessel generate` makes from code."""
+"""Shipped vessel folders load, compile, keep the lumen open and the wall closed; the phantoms are
+exactly what `sim4endor vessel generate` makes from code."""
 
 from __future__ import annotations
 
@@ -13,11 +13,14 @@ import pytest
 import trimesh
 from scipy.spatial import ConvexHull, cKDTree
 
-from sim4endor import vessels
+from sim4endor import assets, vessels
 from sim4endor.vessels.generators import GENERATORS, GeneratedAnatomy
 from sim4endor.vessels.generators.command import canonical_command, generate_vessel
 
-SHIPPED = ("simplified_phantom", "vascular_phantom")
+PHANTOMS = ("simplified_phantom", "vascular_phantom")
+#: Every vessel folder shipped in the package's vessels/ (generated or not).
+SHIPPED = tuple(sorted(p.name for p in assets.vessels_dir().iterdir()
+                       if (p / "manifest.json").is_file()))
 LUMEN_FILE = "lumen.stl"
 
 
@@ -76,11 +79,16 @@ def _depth_outside(hulls: list[np.ndarray], points: np.ndarray, exact: bool) -> 
 
 @pytest.fixture(params=SHIPPED)
 def shipped(request: pytest.FixtureRequest) -> vessels.Vessel:
+    return vessels.load(assets.vessels_dir() / request.param)
+
+
+@pytest.fixture(params=PHANTOMS)
+def phantom(request: pytest.FixtureRequest) -> vessels.Vessel:
     return vessels.load(request.param)
 
 
 def test_shipped_phantoms_are_listed() -> None:
-    assert set(SHIPPED) <= set(vessels.names())
+    assert set(PHANTOMS) <= set(SHIPPED) <= set(vessels.names())
 
 
 def test_shipped_folder_loads_and_compiles_without_warnings(shipped: vessels.Vessel) -> None:
@@ -94,8 +102,7 @@ def test_shipped_folder_loads_and_compiles_without_warnings(shipped: vessels.Ves
     assert model.ngeom >= shipped.manifest.hull_count == hull_files
     for name in ("inlet", *(f"target_{t}" for t in shipped.targets)):
         assert mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) >= 0, name
-    assert set(shipped.targets) == {"A", "B"}
-    assert {"inlet", "A", "B"} <= set(shipped.centerline.labels)
+    assert shipped.targets and {"inlet", *shipped.targets} <= set(shipped.centerline.labels)
     assert (shipped.root / "README.md").is_file() and (shipped.root / LUMEN_FILE).is_file()
 
 
@@ -127,37 +134,38 @@ def test_points_just_outside_the_lumen_lie_in_the_wall(shipped: vessels.Vessel) 
     assert inside.mean() >= 0.95
 
 
-def test_shipped_folder_is_what_the_generator_makes(shipped: vessels.Vessel) -> None:
-    anatomy = _generated(shipped.name)
-    committed = json.loads((shipped.root / vessels.CENTERLINE_FILE).read_text())
+def test_phantom_folder_is_what_the_generator_makes(phantom: vessels.Vessel) -> None:
+    anatomy = _generated(phantom.name)
+    assert set(phantom.targets) == {"A", "B"}
+    committed = json.loads((phantom.root / vessels.CENTERLINE_FILE).read_text())
     regenerated = anatomy.centerline.to_json_dict()
     for key in ("nodes", "radii", "edges", "branch", "branch_names"):
         assert committed[key] == regenerated[key], key
     for name, point in anatomy.targets.items():
-        np.testing.assert_allclose(shipped.targets[name], point, atol=1e-9)
-    np.testing.assert_allclose(shipped.inlet_position, anatomy.inlet_position, atol=1e-12)
-    np.testing.assert_allclose(shipped.inlet_direction, anatomy.inlet_direction, atol=1e-6)
-    lumen = trimesh.load(shipped.root / LUMEN_FILE, force="mesh")
+        np.testing.assert_allclose(phantom.targets[name], point, atol=1e-9)
+    np.testing.assert_allclose(phantom.inlet_position, anatomy.inlet_position, atol=1e-12)
+    np.testing.assert_allclose(phantom.inlet_direction, anatomy.inlet_direction, atol=1e-6)
+    lumen = trimesh.load(phantom.root / LUMEN_FILE, force="mesh")
     assert len(lumen.faces) == len(anatomy.lumen.faces)
     assert lumen.volume == pytest.approx(anatomy.lumen.volume, rel=1e-5)
     np.testing.assert_allclose(lumen.bounds, anatomy.lumen.bounds, atol=1e-7)
-    command = canonical_command(shipped.name, 0, ())
-    assert shipped.manifest.source == command
-    assert command in (shipped.root / "README.md").read_text()
+    command = canonical_command(phantom.name, 0, ())
+    assert phantom.manifest.source == command
+    assert command in (phantom.root / "README.md").read_text()
 
 
 @pytest.mark.slow
-def test_regenerating_reproduces_the_shipped_folder(shipped: vessels.Vessel, tmp_path: Path,
-                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+def test_regenerating_reproduces_the_phantom_folder(phantom: vessels.Vessel, tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    rebuilt = generate_vessel(shipped.name, out_dir=tmp_path / shipped.name, progress=False,
+    rebuilt = generate_vessel(phantom.name, out_dir=tmp_path / phantom.name, progress=False,
                               cache=False)
-    assert rebuilt.manifest.content_hash == shipped.manifest.content_hash
-    assert rebuilt.manifest.hull_count == shipped.manifest.hull_count
-    for name in ("centerline.json", f"{shipped.name}.xml", "scene.xml"):
-        assert (rebuilt.root / name).read_bytes() == (shipped.root / name).read_bytes(), name
-    hulls = sorted(p.name for p in (shipped.root / "hulls").iterdir())
+    assert rebuilt.manifest.content_hash == phantom.manifest.content_hash
+    assert rebuilt.manifest.hull_count == phantom.manifest.hull_count
+    for name in ("centerline.json", f"{phantom.name}.xml", "scene.xml"):
+        assert (rebuilt.root / name).read_bytes() == (phantom.root / name).read_bytes(), name
+    hulls = sorted(p.name for p in (phantom.root / "hulls").iterdir())
     assert hulls == sorted(p.name for p in (rebuilt.root / "hulls").iterdir())
     for hull in hulls:
         assert (rebuilt.root / "hulls" / hull).read_bytes() == (
-            shipped.root / "hulls" / hull).read_bytes(), hull
+            phantom.root / "hulls" / hull).read_bytes(), hull

@@ -58,6 +58,15 @@ def test_inserting_into_branch_a_succeeds_and_terminates() -> None:
     assert last.reward == pytest.approx(100.0 + info["reward_distance"])
 
 
+def test_rotating_half_a_turn_then_inserting_reaches_b() -> None:
+    env = suite.load("simplified_phantom", "task_b")
+    turn = np.tile([0.0, 1.0], (20, 1))  # 20 x 9 deg: the J-tip now points into branch B
+    last = _run(env, np.vstack([turn, np.tile(INSERT, (120, 1))]))[-1]
+    info = env.task.step_info()
+    assert last.last() and info["is_success"], info
+    assert info["wall_force"] < env.task.config.termination.max_wall_force
+
+
 @pytest.mark.parametrize(
     ("termination", "action", "reason"),
     [
