@@ -81,3 +81,14 @@ def test_observation_scale_must_match_the_observation() -> None:
     env = GymEnv("Pendulum-v1")  # 3 observation entries; the default has 6 factors
     with pytest.raises(ConfigError, match=r"observation_scale has 6 factors.*3 entries"):
         build_agent(default_config("ddpg"), env.observation_spec, env.action_spec)
+
+
+def test_sac_starts_at_the_configured_entropy_temperature() -> None:
+    from torchrl.envs import GymEnv
+
+    from sim4endor.rl.algorithms import build_agent
+
+    env = GymEnv("Pendulum-v1")
+    config = apply_overrides(default_config("sac"), ["network.observation_scale=[]"])
+    agent = build_agent(config, env.observation_spec, env.action_spec)
+    assert float(agent.loss.log_alpha.exp()) == pytest.approx(config.sac.alpha_init)

@@ -102,7 +102,12 @@ def build_agent(config: TrainConfig, observation_spec: Composite, action_spec: T
         actor = networks.stochastic_actor(obs_dim, action_spec, net)
         critic = networks.action_value(obs_dim, action_dim, net)
         loss = SACLoss(
-            actor, critic, num_qvalue_nets=2, loss_function="l2", action_spec=action_spec
+            actor,
+            critic,
+            num_qvalue_nets=2,
+            loss_function="l2",
+            alpha_init=config.sac.alpha_init,
+            action_spec=action_spec,
         )
         exploration = actor
         groups = [loss.actor_network_params, loss.qvalue_network_params, [loss.log_alpha]]

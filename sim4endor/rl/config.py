@@ -123,6 +123,21 @@ class ExplorationConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class SACConfig:
+    """SAC-specific settings (ignored by DDPG and PPO).
+
+    Attributes:
+        alpha_init: initial entropy temperature, tuned automatically afterwards (target
+            entropy −dim(action)). The paper's progress reward is ~0.015 per step (mm / 100),
+            so TorchRL's usual 1.0 lets the entropy bonus swamp it for thousands of steps at
+            lr 1e-4 (measured: α still 0.7 and no progress after 5k steps); 0.01 matches the
+            reward scale.
+    """
+
+    alpha_init: float = 0.01
+
+
+@dataclasses.dataclass(frozen=True)
 class PPOConfig:
     """PPO-specific settings (ignored by DDPG and SAC).
 
@@ -189,6 +204,7 @@ class TrainConfig:
     replay: ReplayConfig = ReplayConfig()
     network: NetworkConfig = NetworkConfig()
     exploration: ExplorationConfig = ExplorationConfig()
+    sac: SACConfig = SACConfig()
     ppo: PPOConfig = PPOConfig()
     eval: EvalConfig = EvalConfig()
     logger: LoggerConfig = LoggerConfig()
