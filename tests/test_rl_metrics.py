@@ -10,7 +10,7 @@ import torch
 from tensordict import TensorDict
 
 from sim4endor.errors import Sim4EndoRError
-from sim4endor.rl.evaluation import EpisodeKeys, episode_from_rollout
+from sim4endor.rl.evaluation import EpisodeKeys, episode_from_rollout, success_fraction
 from sim4endor.rl.metrics import Episode, path_length, spl_term, summarize
 
 
@@ -94,3 +94,10 @@ def test_episode_from_a_scripted_rollout() -> None:
     assert episode.shortest_path_m == pytest.approx(9e-3 + 1e-3, rel=1e-5)
     assert episode.episode_return == pytest.approx(4.0)
     assert not math.isnan(summarize([episode])["spl"])
+
+
+def test_success_fraction_of_no_finished_episode_is_none() -> None:
+    steps = TensorDict({"is_success": torch.zeros(3, dtype=torch.bool)}, batch_size=[3])
+    assert success_fraction(steps[torch.zeros(3, dtype=torch.bool)]) is None
+    assert success_fraction(steps[torch.tensor([True, False, True])]) == 0.0
+    assert success_fraction(TensorDict({}, batch_size=[2])) is None  # env without success

@@ -102,6 +102,7 @@ def episode_from_rollout(rollout: TensorDictBase, keys: EpisodeKeys = EpisodeKey
 def success_fraction(done_steps: TensorDictBase, keys: EpisodeKeys = EpisodeKeys()) -> float | None:
     """Fraction of finished episodes in ``done_steps`` (the ``next`` entries of done steps)
     that succeeded; None when the env does not report success."""
-    if keys.success not in done_steps.keys() or done_steps.numel() == 0:
+    # len(), not numel(): a TensorDict with batch size (0,) reports numel() == 1.
+    if keys.success not in done_steps.keys() or len(done_steps) == 0:
         return None
     return float(done_steps[keys.success].float().mean())

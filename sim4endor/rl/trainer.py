@@ -284,7 +284,7 @@ class _Loop:
         for key in nxt.keys():
             if isinstance(key, str) and key.startswith("reward_"):
                 scalars[f"train/{key}"] = float(nxt[key].float().mean())
-        if finished.numel():
+        if len(finished):  # not numel(): an empty TensorDict reports numel() == 1
             scalars["train/episode_reward"] = float(finished["episode_reward"].mean())
             success = success_fraction(finished, self.keys)
             if success is not None:
