@@ -53,8 +53,8 @@ def test_every_phantom_task_loads_resets_and_steps(domain: str, task: str) -> No
         assert all(np.all(np.isfinite(v)) for v in ts.observation.values())
 
 
-@pytest.mark.slow
 def test_random_coronary_draws_seeded_anatomies(tmp_path) -> None:
+    # Builds two small trees (about 10 s each on a busy 2-core machine; cached by content).
     kwargs = {"random": 1, "pool_size": 2, "cache_dir": tmp_path}
     env = suite.load("random_coronary", "navigate", kwargs)
     drawn = set()
