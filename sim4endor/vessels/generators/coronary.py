@@ -156,7 +156,8 @@ def _fits(plans: list[BranchPlan], candidate: BranchPlan, config: CoronaryTreeCo
         return False  # around the axis behind the inlet, where the introducer sheath is
     graph = centerline_graph(branches, {})
     own = np.flatnonzero(graph.branch == len(trial) - 1)
-    return len(clearance_violations(graph, config.clearance, nodes=own)) == 0
+    clashes = clearance_violations(graph, config.clearance, nodes=own, margin=_CHECK_SPACING)
+    return len(clashes) == 0
 
 
 def coronary_tree(config: CoronaryTreeConfig = CoronaryTreeConfig(), seed: int = 0

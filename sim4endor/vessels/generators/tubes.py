@@ -158,9 +158,10 @@ def lumen_mesh(branches: Sequence[TubeBranch], segments: int) -> trimesh.Trimesh
             )
         parts.append(solid)
     union = manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add)
-    if union.genus() != 0 or len(union.decompose()) != 1:
+    genus, components = union.genus(), len(union.decompose())
+    if genus != 0 or components != 1:
         raise LumenMeshError(
-            f"The tube union has genus {union.genus()} and {len(union.decompose())} component(s); "
+            f"The tube union has genus {genus} and {components} component(s); "
             "a vessel tree must be one component of genus 0: branches touch each other away from "
             "their junctions. Increase the clearance or change the layout."
         )
@@ -213,7 +214,7 @@ def centerline_graph(branches: Sequence[TubeBranch], labels: Mapping[str, tuple[
 
 
 def clearance_violations(graph: CenterlineGraph, gap: float, *,
-                         nodes: IntArray | None = None) -> IntArray:
+                         nodes: IntArray | None = None, margin: float = 0.0) -> IntArray:
     """Finds places where two parts of the tree come too close away from their junctions.
 
     Two axis points ``p, q`` clash when their lumens are closer than ``gap`` (Euclidean
@@ -225,13 +226,15 @@ def clearance_violations(graph: CenterlineGraph, gap: float, *,
         graph: The tree's centerline graph.
         gap: Smallest allowed wall-to-wall distance between lumens (m), e.g. two wall thicknesses.
         nodes: Only check pairs involving these nodes (default: all).
+        margin: Widens both conditions by this much (m), so a tree that passes on a coarse
+            sampling also passes on any finer one (use the coarse sample spacing).
 
     Returns:
         (K, 2) clashing node pairs (empty when the tree is clear).
     """
     tree = cKDTree(graph.nodes)
     query = np.arange(graph.num_nodes) if nodes is None else np.asarray(nodes, dtype=np.int64)
-    reach = 2.0 * float(graph.radii.max()) + gap
+    reach = 2.0 * float(graph.radii.max()) + gap + margin
     pairs = [(int(i), int(j)) for i, near in zip(query, tree.query_ball_point(graph.nodes[query],
                                                                              reach), strict=True)
              for j in near if j != i]
@@ -239,7 +242,7 @@ def clearance_violations(graph: CenterlineGraph, gap: float, *,
         return np.zeros((0, 2), dtype=np.int64)
     p, q = np.asarray(pairs, dtype=np.int64).T
     allowed = graph.radii[p] + graph.radii[q] + gap
-    close = np.linalg.norm(graph.nodes[p] - graph.nodes[q], axis=1) < allowed
+    close = np.linalg.norm(graph.nodes[p] - graph.nodes[q], axis=1) < allowed + margin
     p, q, allowed = p[close], q[close], allowed[close]
     if len(p) == 0:
         return np.zeros((0, 2), dtype=np.int64)
@@ -249,7 +252,6 @@ def clearance_violations(graph: CenterlineGraph, gap: float, *,
         (np.maximum(lengths, 1e-12), (graph.edges[:, 0], graph.edges[:, 1])),
         shape=(graph.num_nodes, graph.num_nodes),
     ).tocsr()
-    limit = 4.0 * float(allowed.max())
-    geodesic = dijkstra(adjacency, directed=False, indices=sources, limit=limit)
-    far = geodesic[inverse, q] > 4.0 * allowed
+    geodesic = dijkstra(adjacency, directed=False, indices=sources, limit=4.0 * allowed.max())
+    far = geodesic[inverse, q] > 4.0 * allowed - margin
     return np.stack([p[far], q[far]], -1)
