@@ -37,7 +37,8 @@ clipped; NaN/inf raise :class:`sim4endor.tasks.InvalidActionError`.
 
 **Reward** (paper): ``R_dist = (D_last − D_current)/100`` with D in mm, ``+100`` when
 D <= 1 mm (success, terminal), ``−100`` on failure (terminal: wall force > 1 N, tip > 0.5 mm
-outside the lumen, insertion > 150 mm, |rotation| > 2 turns, instability). D is the manifold
+outside the lumen, commanded insertion beyond the driver's travel (fitted to the deepest
+target + 10 mm), |rotation| > 2 turns, instability). D is the manifold
 distance; ``task_kwargs={"reward": "euclidean"}`` gives the Euclidean baseline. Episodes are
 truncated after 20 s of simulated time (discount 1); terminal steps have discount 0. The
 terms of each step are in ``env.task.step_info()`` (the gymnasium ``info``).
