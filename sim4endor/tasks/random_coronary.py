@@ -4,7 +4,8 @@ Generating a tree and decomposing its wall into convex hulls costs seconds to a 
 too much per episode. The domain therefore draws each episode's anatomy from a pool of
 ``pool_size`` trees with seeds ``pool_seed, pool_seed + 1, ...``: a tree is generated and
 built the first time an episode draws it, written to a cache folder (reused by later
-processes), and compiled once; later episodes on it only reset the state.
+processes: named by seed and content hash), and compiled once; later episodes on it only
+reset the state.
 
 The trees use :class:`~sim4endor.vessels.generators.CoronaryTreeConfig` with radii of at least
 :data:`MIN_RADIUS` so the wire's pre-bent tip (1.48 mm lateral offset) fits every branch.
@@ -39,26 +40,33 @@ def default_cache_dir() -> Path:
 
 
 def build_member(seed: int, cache_dir: Path) -> Anatomy:
-    """Generates, builds (once, cached on disk) and compiles the pool tree of ``seed``."""
-    folder = cache_dir / f"coronary_{seed:05d}"
-    if not (folder / MANIFEST_FILE).is_file():
-        # Heavy imports only when a tree really has to be built.
-        from sim4endor.vessels.build import BuildParams, build_vessel
-        from sim4endor.vessels.generators import CoronaryTreeConfig, coronary_tree
-        from sim4endor.vessels.walls import WallParams
+    """Generates the pool tree of ``seed``, builds it once (cached on disk) and compiles it.
 
-        config = CoronaryTreeConfig(levels=LEVELS, root_radius=ROOT_RADIUS, min_radius=MIN_RADIUS)
-        tree = coronary_tree(config, seed=seed)
+    Generating costs under a second; the folder name carries a hash of the generated lumen
+    and the build settings, so a changed generator or package version builds a new folder
+    instead of silently reusing a stale one, and processes sharing the cache never rewrite a
+    folder another one is reading.
+    """
+    from sim4endor.vessels.build import BuildParams, build_vessel, content_hash
+    from sim4endor.vessels.generators import CoronaryTreeConfig, coronary_tree
+    from sim4endor.vessels.walls import WallParams
+
+    config = CoronaryTreeConfig(levels=LEVELS, root_radius=ROOT_RADIUS, min_radius=MIN_RADIUS)
+    params = BuildParams(wall=WallParams(use_coacd=False))
+    tree = coronary_tree(config, seed=seed)
+    digest = content_hash(tree.lumen, config=repr(config), params=repr(params))[:12]
+    folder = cache_dir / f"coronary_{seed:05d}_{digest}"
+    if not (folder / MANIFEST_FILE).is_file():
         build_vessel(
             tree.lumen,
-            name=folder.name,
+            name=f"coronary_{seed:05d}",
             out_dir=folder,
             units="m",
             centerline=tree.centerline,
             inlet=tree.inlet_position,
             targets=tree.targets,
             source=tree.description,
-            params=BuildParams(wall=WallParams(use_coacd=False)),
+            params=params,
             progress=False,
         )
     return compile_anatomy(folder, fit=False)
