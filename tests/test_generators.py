@@ -330,3 +330,21 @@ def test_generate_vessel_rejects_bad_input_before_building(tmp_path) -> None:
     with pytest.raises(GeneratorConfigError, match="no field"):
         generate_vessel("coronary_tree", out_dir=tmp_path / "x", overrides=["depth=2"])
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.slow
+def test_generate_command_builds_a_loadable_coronary_vessel(tmp_path, monkeypatch) -> None:
+    from sim4endor import vessels
+    from sim4endor.cli import main
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    out = tmp_path / "tree"
+    status = main(["vessel", "generate", "coronary_tree", "--seed", "4", "--set", "levels=1",
+                   "--out", str(out), "--no-progress"])
+    vessel = vessels.load(out)
+    anatomy = coronary_tree(CoronaryTreeConfig(levels=1), seed=4)
+    assert status == 0 and vessel.name == "coronary_tree_seed4"
+    assert set(vessel.targets) == {"T1", "T2"}
+    np.testing.assert_allclose(vessel.centerline.nodes, anatomy.centerline.nodes, atol=1e-9)
+    assert vessel.manifest.source == canonical_command("coronary_tree", 4, ["levels=1"])
+    assert vessel.manifest.checks["wall_closed"] >= 0.95
