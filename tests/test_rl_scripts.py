@@ -86,3 +86,14 @@ def test_notebook_executes(phantom: str, tmp_path: Path, monkeypatch: pytest.Mon
     assert (tmp_path / "policy.pt").is_file()
     assert (tmp_path / "learning_curves.png").is_file()
     assert (tmp_path / "episode.mp4").stat().st_size > 0
+
+
+def test_extra_observations_reach_the_environment(phantom: str) -> None:
+    from sim4endor.rl.config import EnvConfig
+    from sim4endor.rl.envs import env_factory
+
+    env = env_factory(EnvConfig(domain=phantom, extra_observations=("rotation",)))(0)
+    try:
+        assert env.observation_spec["observation"].shape == (7,)
+    finally:
+        env.close()

@@ -37,12 +37,17 @@ class EnvConfig:
         task: task name within the domain, e.g. ``task_a``.
         reward: distance used by the progress reward: geodesic (``manifold``) or ``euclidean``.
         num_envs: environments stepped per collector (>1 uses one worker process each).
+        extra_observations: task observation entries appended to the paper's state
+            ``[tip_position, tip_velocity]``, e.g. ``["rotation"]`` (rad): the paper's state
+            cannot see the accumulated wire rotation, whose limit ends episodes. Add one
+            ``network.observation_scale`` factor per extra entry.
     """
 
     domain: str = "simplified_phantom"
     task: str = "task_a"
     reward: Literal["manifold", "euclidean"] = "manifold"
     num_envs: int = 1
+    extra_observations: tuple[str, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)

@@ -17,21 +17,30 @@ from sim4endor.rl.config import EnvConfig
 EnvFactory = Callable[[int], EnvBase]
 
 
-def sim4endor_env(domain: str, task: str, reward: str, seed: int) -> EnvBase:
-    """Returns the TorchRL env of a sim4endor task (default observations and action scaling).
+def sim4endor_env(
+    domain: str, task: str, reward: str, seed: int, extra_observations: tuple[str, ...] = ()
+) -> EnvBase:
+    """Returns the TorchRL env of a sim4endor task (default action scaling).
 
-    Its ``observation`` is ``[tip_position (m), tip_velocity (m/s)]`` and each step reports
-    the reward terms and diagnostics (``is_success``, ``wall_force``, ...) beside it.
+    Its ``observation`` is ``[tip_position (m), tip_velocity (m/s), *extra_observations]``
+    and each step reports the reward terms and diagnostics (``is_success``, ``wall_force``,
+    ...) beside it.
     """
     from sim4endor.envs import make_torchrl_env
 
-    env = make_torchrl_env(domain, task, task_kwargs={"random": seed, "reward": reward})
-    return with_episode_return(env)
+    task_kwargs = {"random": seed, "reward": reward, "observations": extra_observations}
+    return with_episode_return(make_torchrl_env(domain, task, task_kwargs=task_kwargs))
 
 
 def env_factory(config: EnvConfig) -> EnvFactory:
     """Returns the picklable factory of the sim4endor task named by ``config``."""
-    return functools.partial(sim4endor_env, config.domain, config.task, config.reward)
+    return functools.partial(
+        sim4endor_env,
+        config.domain,
+        config.task,
+        config.reward,
+        extra_observations=config.extra_observations,
+    )
 
 
 def with_episode_return(env: EnvBase) -> EnvBase:
