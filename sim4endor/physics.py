@@ -165,7 +165,13 @@ class GuidewirePhysics(dm_mujoco.Physics):
         return _scalar(ctrl[names.INSERTION_ACTUATOR]), _scalar(ctrl[names.ROTATION_ACTUATOR])
 
     def set_driver_targets(self, insertion: float, rotation: float) -> None:
-        """Sets the servo targets, clipped to the driver's ranges (m, rad)."""
+        """Sets the servo targets, clipped to the driver's ranges (m, rad).
+
+        Targets should move no faster than :meth:`max_speeds` (use :meth:`apply_increments`).
+        Measured: jumping the insertion target by 70 mm into a dead end, so that the servo
+        shoves the (mass-scaled, ~1 kg) wire at its force limit from rest, broke the wire out
+        of a 2 mm tube in 6–8 of 8 tries, while increments at up to 45 mm/s never did.
+        """
         model = self.named.model
         targets = ((names.INSERTION_ACTUATOR, insertion), (names.ROTATION_ACTUATOR, rotation))
         for name, value in targets:

@@ -58,3 +58,15 @@ def test_seeded_steering_success_rate_is_at_least_90_percent(phantom: vessels.Ve
             for _ in range(10)
         )
         assert wins >= 9, f"{target}: {wins}/10"
+
+
+def test_insertion_into_the_vascular_phantom_stays_stable() -> None:
+    # Regression: with armature_time 7.5 ms this path blew up at t = 4.7 s (BADQACC).
+    try:
+        vessel = vessels.load("vascular_phantom")
+    except vessels.VesselNotFoundError:
+        pytest.skip("vessels/vascular_phantom is not built yet")
+    physics = GuidewirePhysics.from_vessel(vessel, config_for_vessel(vessel))
+    result = validation.steer(physics, vessel, "A", 0.0, speed=0.02, time_limit=6.0)
+    assert result.healthy
+    assert result.max_escape == 0.0

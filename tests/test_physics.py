@@ -21,8 +21,7 @@ def tube(tmp_path_factory: pytest.TempPathFactory) -> Vessel:
 
 
 def _drive(physics: GuidewirePhysics, insertion: float, rotation: float, seconds: float) -> None:
-    physics.set_driver_targets(insertion, rotation)
-    physics.step(round(seconds / physics.model.opt.timestep))
+    validation.drive_to(physics, insertion, rotation, settle=seconds)
 
 
 def test_accessors_have_si_shapes(tube: Vessel) -> None:
@@ -40,10 +39,10 @@ def test_accessors_have_si_shapes(tube: Vessel) -> None:
 def test_insertion_moves_the_tip_and_reports_velocity(tube: Vessel) -> None:
     physics = GuidewirePhysics.from_vessel(tube)
     start = physics.tip_position()
-    physics.set_driver_targets(0.03, 0.0)
-    physics.step(40)
+    physics.apply_increments(0.0015, 0.0, 0.05)  # the speed limit: 30 mm/s
+    physics.step(10)
     assert physics.tip_velocity()[0] > 0.01
-    physics.step(500)  # the force-limited servo pushes ~1 kg of mass-scaled wire
+    _drive(physics, 0.03, 0.0, 0.5)
     assert physics.insertion_depth() == pytest.approx(0.03, abs=5e-4)
     assert physics.tip_position()[0] - start[0] == pytest.approx(0.03, abs=1e-3)
     assert physics.is_finite() and not physics.warnings()

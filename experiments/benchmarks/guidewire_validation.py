@@ -40,6 +40,7 @@ import sys
 import time
 
 import numpy as np
+from dm_control.rl import control
 
 from sim4endor import vessels
 from sim4endor.models import validation
@@ -65,11 +66,9 @@ def cantilever_errors(wire: GuidewireConfig) -> dict[str, float]:
 def torque_error(vessel: vessels.Vessel, config: SceneConfig) -> float:
     """Rotates the driver by 90° with the tip in the inlet segment; returns the error (deg)."""
     physics = GuidewirePhysics.from_vessel(vessel, config)
-    physics.set_driver_targets(0.02, 0.0)
-    physics.step(round(2.0 / physics.model.opt.timestep))
+    validation.drive_to(physics, 0.02, 0.0, settle=1.0)
     before = validation.tip_bend_direction(physics)
-    physics.set_driver_targets(0.02, math.pi / 2)
-    physics.step(round(3.0 / physics.model.opt.timestep))
+    validation.drive_to(physics, 0.02, math.pi / 2, settle=2.5)
     after = validation.tip_bend_direction(physics)
     turned = math.degrees((after - before + math.pi) % (2 * math.pi) - math.pi)
     return abs(abs(turned) - 90.0)
@@ -124,13 +123,36 @@ def escape(
         _, angle = physics.driver_targets()
         goal = 0.0 if physics.data.time < 1.0 else math.pi / 2 * math.sin(physics.data.time)
         physics.apply_increments(v_ins * period, goal - angle, period)
-        physics.step(substeps)
+        try:
+            physics.step(substeps)
+        except control.PhysicsError:
+            return math.inf, math.inf, math.inf
         if not physics.is_finite() or physics.warnings():
             return math.inf, math.inf, math.inf
         worst = max(worst, validation.escape_depth(physics, vessel))
         surface = max(surface, validation.escape_depth(physics, vessel, config.wire.radius))
         force = max(force, physics.wall_contact_force())
     return worst / config.wire.radius, surface, force
+
+
+def robustness(name: str = "vascular_phantom") -> tuple[int, int]:
+    """Insertion episodes in a tortuous phantom: (unhealthy episodes, episodes).
+
+    Each target × driver rotation 0/90/180/270° × speed 20/30 mm/s, 8 s each; an episode is
+    unhealthy on NaN, a MuJoCo warning or dm_control's instability error.
+    """
+    vessel = vessels.load(name)
+    physics = GuidewirePhysics.from_vessel(vessel, config_for_vessel(vessel))
+    bad = total = 0
+    for target in vessel.targets:
+        for degrees in (0, 90, 180, 270):
+            for speed in (0.02, 0.03):
+                result = validation.steer(
+                    physics, vessel, target, math.radians(degrees), speed, time_limit=8.0
+                )
+                bad += not result.healthy
+                total += 1
+    return bad, total
 
 
 def segment_table(vessel: vessels.Vessel, config: SceneConfig) -> list[dict]:
@@ -167,6 +189,7 @@ def main() -> None:
     steer = steering(vessel, config, args.tries, args.seed)
     escape_radii, escape_surface, escape_force = escape(vessel, config)
     table = segment_table(vessel, config)
+    unhealthy, episodes = robustness()
     result = {
         "cantilever_rel_error": max(cantilever["real_mass"], cantilever["mass_scaled"]),
         "torque_error_deg": torque,
@@ -188,6 +211,8 @@ def main() -> None:
         print(f"  steer {target} noise {noise:+.1f} deg speed {speed} mm/s: success "
               f"{res.success} distance {res.final_distance * 1e3:.2f} mm t {res.sim_time:.2f} s "
               f"escape {res.max_escape * 1e3:.3f} mm", file=log)
+    print(f"robustness: {unhealthy} of {episodes} insertion episodes in vascular_phantom "
+          "unstable", file=log)
     print(f"realtime factor by wall clock {steer['sim_time'] / steer['wall_time']:.1f}, by CPU "
           f"time {result['realtime_factor']:.1f}", file=log)
     print("segments | max segment (mm) | steps/s (CPU) | realtime factor (CPU) | reached A",

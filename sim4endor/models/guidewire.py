@@ -82,8 +82,9 @@ class GuidewireConfig:
             ``damping_time`` times its bending stiffness ``E·I/l`` (N·m/rad), so short tip
             segments and long shaft segments relax alike.
         armature_time: Ball-joint armature as a time (s): armature = stiffness ×
-            ``armature_time²``. The plugin's spring is explicit; it stays stable while the
-            time step is below about ``2·armature_time``.
+            ``armature_time²``. The plugin's spring is explicit, so the time step must stay
+            well below ``armature_time``. Measured at dt 5 ms: 7.5 ms blew up in 6 of 48
+            insertion episodes in the vascular phantom, 15 ms in none (nor in 48 more).
     """
 
     length: float = 0.15
@@ -101,7 +102,7 @@ class GuidewireConfig:
     max_segment_length: float = 0.005
     segment_growth: float = 1.5
     damping_time: float = 0.025
-    armature_time: float = 0.0075
+    armature_time: float = 0.015
 
     def __post_init__(self) -> None:
         positive = (

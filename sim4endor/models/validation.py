@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from dm_control.rl import control
 from numpy.typing import NDArray
 
 from sim4endor.models import constants as names
@@ -91,6 +92,25 @@ def cantilever(
     tip = straight.tip_length
     compliance = (free_length**3 - tip**3 + tip**3 / factor) / (3 * ei)
     return CantileverResult(deflection, force * compliance, free_length, force)
+
+
+def drive_to(
+    physics: GuidewirePhysics, insertion: float, rotation: float, settle: float = 0.0,
+    control_period: float = 0.05,
+) -> None:
+    """Moves the driver to (insertion m, rotation rad) at its speed limits, then waits.
+
+    Targets move by increments no faster than the driver's speed limits, as a policy's
+    would; ``settle`` seconds of holding follow.
+    """
+    substeps = max(1, round(control_period / physics.model.opt.timestep))
+    while True:
+        ins, rot = physics.driver_targets()
+        if abs(ins - insertion) < 1e-9 and abs(rot - rotation) < 1e-9:
+            break
+        physics.apply_increments(insertion - ins, rotation - rot, control_period)
+        physics.step(substeps)
+    physics.step(round(settle / physics.model.opt.timestep))
 
 
 def tip_bend_direction(physics: GuidewirePhysics, back: float = 0.008) -> float:
@@ -173,7 +193,10 @@ def steer(
             physics.apply_increments(0.0, rotation - angle, control_period)
         else:
             physics.apply_increments(speed * control_period, 0.0, control_period)
-        physics.step(substeps)
+        try:
+            physics.step(substeps)
+        except control.PhysicsError:  # dm_control raises on MuJoCo's instability warnings
+            break
         wall += time.perf_counter() - start
         cpu += time.thread_time() - start_cpu
         if not physics.is_finite():
