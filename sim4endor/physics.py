@@ -180,6 +180,17 @@ class GuidewirePhysics(dm_mujoco.Physics):
             low, high = model.actuator_ctrlrange[name]
             self.named.data.ctrl[name] = float(np.clip(value, low, high))
 
+    def place_driver(self, insertion: float, rotation: float) -> None:
+        """Moves the carriage (and the wire with it, rigidly) to a pose and holds it there.
+
+        For episode starts only: it sets the joint positions directly, which is safe for the
+        small offsets of an initial state but would teleport a wire that is in contact.
+        """
+        self.set_driver_targets(insertion, rotation)
+        insertion, rotation = self.driver_targets()
+        self.named.data.qpos[names.INSERTION_JOINT] = insertion
+        self.named.data.qpos[names.ROTATION_JOINT] = rotation
+
     def max_speeds(self) -> tuple[float, float]:
         """The driver's speed limits (m/s, rad/s)."""
         numeric = self.named.model.numeric_data

@@ -38,9 +38,11 @@ clipped; NaN/inf raise :class:`sim4endor.tasks.InvalidActionError`.
 **Reward** (paper): ``R_dist = (D_last − D_current)/100`` with D in mm, ``+100`` when
 D <= 1 mm (success, terminal), ``−100`` on failure (terminal: wall force > 1 N, tip > 0.5 mm
 outside the lumen, commanded insertion beyond the driver's travel (fitted to the deepest
-target + 10 mm), |rotation| > 2 turns, instability). D is the manifold
+target + 10 mm), |rotation| > 10 turns, instability). D is the manifold
 distance; ``task_kwargs={"reward": "euclidean"}`` gives the Euclidean baseline. Episodes are
-truncated after 20 s of simulated time (discount 1); terminal steps have discount 0. The
+truncated after 20 s of simulated time (discount 1); terminal steps have discount 0. Each
+episode starts with the wire rolled by a random angle in ±30° and advanced by 0–1 mm, drawn
+from the task's seeded generator (``task_kwargs={"initial_state": InitialStateConfig(...)}``). The
 terms of each step are in ``env.task.step_info()`` (the gymnasium ``info``).
 """
 
@@ -65,6 +67,7 @@ from sim4endor.tasks import (
     Anatomy,
     AnatomySource,
     FixedAnatomy,
+    InitialStateConfig,
     NavigationConfig,
     NavigationTask,
     PixelsConfig,
@@ -81,7 +84,8 @@ _LOG = logging.getLogger(__name__)
 
 #: task_kwargs understood by every task (besides the domain-specific ones below).
 _COMMON_KWARGS = (
-    "random", "reward", "curvature_weight", "observations", "action", "termination", "pixels",
+    "random", "reward", "curvature_weight", "observations", "action", "termination",
+    "initial_state", "pixels",
 )
 _DOMAIN_KWARGS: Mapping[str, tuple[str, ...]] = {
     "vessel": ("vessel", "target"),
@@ -141,6 +145,7 @@ def _navigation_config(kwargs: Mapping[str, Any]) -> NavigationConfig:
         action=kwargs.get("action", ActionConfig()),
         reward=reward,
         termination=kwargs.get("termination", TerminationConfig()),
+        initial_state=kwargs.get("initial_state", InitialStateConfig()),
         observations=DEFAULT_OBSERVATIONS + tuple(o for o in extras if o not in
                                                   DEFAULT_OBSERVATIONS),
         pixels=kwargs.get("pixels", PixelsConfig()),
@@ -178,7 +183,8 @@ def load(
         task_name: A task of that domain, e.g. ``"task_a"``.
         task_kwargs: ``random`` (seed), ``reward`` (``"manifold"``/``"euclidean"`` or a
             :class:`~sim4endor.rewards.RewardConfig`), ``curvature_weight``, ``observations``
-            (extra entries), ``action`` / ``termination`` / ``pixels`` (config dataclasses);
+            (extra entries), ``action`` / ``termination`` / ``initial_state`` / ``pixels``
+            (config dataclasses);
             domain ``vessel``: ``vessel``, ``target``; domain ``random_coronary``:
             ``pool_size``, ``pool_seed``, ``cache_dir``.
         environment_kwargs: Passed to ``control.Environment`` (e.g. ``time_limit``).

@@ -9,7 +9,13 @@ import pytest
 from navigation_helpers import require_vessel
 
 from sim4endor import suite
-from sim4endor.tasks import InvalidActionError, PixelsConfig, TerminationConfig, fluoroscopy
+from sim4endor.tasks import (
+    InitialStateConfig,
+    InvalidActionError,
+    PixelsConfig,
+    TerminationConfig,
+    fluoroscopy,
+)
 from sim4endor.tasks.anatomy import compile_anatomy
 from sim4endor.tasks.navigation import lumen_excess
 
@@ -46,6 +52,20 @@ def test_same_seed_and_actions_give_identical_trajectories() -> None:
         assert a.reward == b.reward
         for key in a.observation:
             np.testing.assert_array_equal(a.observation[key], b.observation[key])
+
+
+def test_episode_starts_are_seeded_and_differ() -> None:
+    """The roll and depth of the start come from the task's generator: trials differ."""
+    env = suite.load("simplified_phantom", "task_a", {"random": 11})
+    starts = [env.reset().observation["tip_position"] for _ in range(3)]
+    assert not np.allclose(starts[0], starts[1]) and not np.allclose(starts[1], starts[2])
+    again = suite.load("simplified_phantom", "task_a", {"random": 11}).reset()
+    np.testing.assert_array_equal(again.observation["tip_position"], starts[0])
+    rotation = env.physics.rotation_angle()
+    assert abs(rotation) <= env.task.config.initial_state.rotation_range + 1e-9
+    fixed = suite.load("simplified_phantom", "task_a",
+                       {"initial_state": InitialStateConfig(0.0, 0.0)})
+    assert fixed.reset() and fixed.physics.rotation_angle() == 0.0
 
 
 def test_inserting_into_branch_a_succeeds_and_terminates() -> None:

@@ -35,7 +35,10 @@ class DriverConfig:
     Attributes:
         max_insertion: Largest insertion depth (m) beyond the start position.
         max_insertion_speed: Insertion speed limit (m/s).
-        max_rotation: Rotation range is ±max_rotation (rad).
+        max_rotation: Rotation range is ±max_rotation (rad). Robotic PCI drivers roll the
+            wire continuously; ten turns bound the commanded twist without letting a policy
+            that drifts in one direction fail within an episode (measured: with two turns,
+            DDPG and SAC runs that had solved Task A later failed on the limit).
         max_rotation_speed: Rotation speed limit (rad/s).
         initial_protrusion: Wire length beyond the sheath end at insertion 0 (m); must exceed
             the pre-bent tip so the tip starts free in the lumen.
@@ -55,7 +58,7 @@ class DriverConfig:
 
     max_insertion: float = 0.13
     max_insertion_speed: float = 0.03
-    max_rotation: float = 4 * math.pi
+    max_rotation: float = 20 * math.pi
     max_rotation_speed: float = math.pi
     initial_protrusion: float = 0.008
     insertion_stiffness: float = 500.0

@@ -96,6 +96,30 @@ class TerminationConfig:
 
 
 @dataclass(frozen=True)
+class InitialStateConfig:
+    """How each episode's start is drawn from the task's random generator.
+
+    The wire starts homed in the inlet, rolled by an angle drawn uniformly from
+    ``±rotation_range`` and advanced by a depth drawn uniformly from ``[0, insertion_range]``.
+    Without it every episode of a fixed anatomy starts identically, so a deterministic
+    policy's evaluation trials would all be the same episode. The roll is observable through
+    the tip position: the pre-bent tip sits off the vessel axis in its bend direction.
+
+    Attributes:
+        rotation_range: Half-width of the initial roll interval (rad).
+        insertion_range: Largest initial insertion (m).
+    """
+
+    rotation_range: float = math.radians(30.0)
+    insertion_range: float = 1.0e-3
+
+    def __post_init__(self) -> None:
+        for name in ("rotation_range", "insertion_range"):
+            if not getattr(self, name) >= 0:
+                raise TaskConfigError(f"InitialStateConfig.{name} must be >= 0.")
+
+
+@dataclass(frozen=True)
 class PixelsConfig:
     """The fluoroscopy-like image: an orthographic projection of lumen and wire.
 
@@ -137,6 +161,7 @@ class NavigationConfig:
         action: Action scaling and control frequency.
         reward: The paper's reward constants and metric.
         termination: Failure thresholds and time limit.
+        initial_state: Randomisation of each episode's start.
         observations: Observation entries, defaults first (see ``OPTIONAL_OBSERVATIONS``).
         pixels: Image settings, used when ``"pixels"`` is observed.
     """
@@ -144,6 +169,7 @@ class NavigationConfig:
     action: ActionConfig = field(default_factory=ActionConfig)
     reward: RewardConfig = field(default_factory=RewardConfig)
     termination: TerminationConfig = field(default_factory=TerminationConfig)
+    initial_state: InitialStateConfig = field(default_factory=InitialStateConfig)
     observations: tuple[str, ...] = DEFAULT_OBSERVATIONS
     pixels: PixelsConfig = field(default_factory=PixelsConfig)
 

@@ -168,10 +168,11 @@ class NavigationTask(base.Task):
             physics._reload_from_data(MjData(MjModel(anatomy.model)))
         self._anatomy = anatomy
         self._max_insertion, self._max_rotation = self._limits(physics)
-        self._insertion = 0.0
-        self._rotation = 0.0
+        start = self.config.initial_state
+        self._insertion = float(self.random.uniform(0.0, start.insertion_range))
+        self._rotation = float(self.random.uniform(-start.rotation_range, start.rotation_range))
         self._last_action = np.zeros(2)
-        physics.set_driver_targets(self._insertion, self._rotation)
+        physics.place_driver(self._insertion, self._rotation)
         self._d_last = self._distance(self.config.reward.metric)(physics.tip_position())
         self._evaluation = None
 
