@@ -39,6 +39,7 @@ from sim4endor.vessels.axis import AxisSamples, branch_chains, sample_axis
 from sim4endor.vessels.centerline import CenterlineGraph
 from sim4endor.vessels.checks import (
     CheckParams,
+    inlet_cap,
     lumen_open_fraction,
     wall_closed_fraction,
     wall_probes,
@@ -167,17 +168,6 @@ def _orient_outward(mesh: trimesh.Trimesh, axis: AxisSamples) -> trimesh.Trimesh
     return mesh
 
 
-def _inlet_cap(
-    mesh: trimesh.Trimesh, position: np.ndarray, direction: np.ndarray, radius: float
-) -> np.ndarray:
-    """Faces of the end cap at the inlet (left without a wall so the wire can enter)."""
-    offset = mesh.triangles_center - position
-    along = offset @ direction
-    lateral = np.linalg.norm(offset - along[:, None] * direction, axis=1)
-    facing = np.abs(mesh.face_normals @ direction) > 0.5
-    return (along < 0.25 * radius) & (lateral < 1.5 * radius) & facing
-
-
 def _labelled(
     graph: CenterlineGraph, inlet_node: int, targets: Mapping[str, np.ndarray]
 ) -> CenterlineGraph:
@@ -291,7 +281,7 @@ def build_vessel(
 
     axis = sample_axis(graph)
     mesh = _orient_outward(prepared.mesh, axis)
-    walled = ~_inlet_cap(mesh, inlet_pos, inlet_dir, inlet_radius)
+    walled = ~inlet_cap(mesh, inlet_pos, inlet_dir, inlet_radius)
     pieces, face_radius, face_u, face_angle = bin_faces(mesh, axis, params.wall)
     pieces = [p[walled[p]] for p in pieces]
     pieces = [p for p in pieces if len(p)]

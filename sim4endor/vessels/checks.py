@@ -15,13 +15,18 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import trimesh
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from sim4endor.vessels.axis import AxisSamples
-from sim4endor.vessels.walls import Hull
+from sim4endor.vessels.axis import AxisSamples, sample_axis
+from sim4endor.vessels.walls import Hull, convex_hull
+
+if TYPE_CHECKING:
+    from sim4endor.vessels import Vessel
 
 FloatArray = NDArray[np.float64]
 
@@ -124,3 +129,68 @@ def wall_closed_fraction(hulls: Sequence[Hull], probes: FloatArray, slack: float
         return 1.0
     bound = hull_distance_bound(hulls, probes, reach=slack)
     return float(np.mean(bound <= slack))
+
+
+def inlet_cap(
+    mesh: trimesh.Trimesh, position: FloatArray, direction: FloatArray, radius: float
+) -> NDArray[np.bool_]:
+    """Faces of the end cap at the inlet, which get no wall so a wire can enter a capped mesh."""
+    offset = mesh.triangles_center - position
+    along = offset @ direction
+    lateral = np.linalg.norm(offset - along[:, None] * direction, axis=1)
+    facing = np.abs(mesh.face_normals @ direction) > 0.5
+    return np.asarray((along < 0.25 * radius) & (lateral < 1.5 * radius) & facing)
+
+
+def _mesh(path: Any) -> trimesh.Trimesh:
+    mesh = trimesh.load(path, force="mesh")
+    assert isinstance(mesh, trimesh.Trimesh)  # force="mesh" always gives one
+    return mesh
+
+
+def check_folder(vessel: Vessel, params: CheckParams | None = None) -> dict[str, Any]:
+    """Re-runs the checks on a built vessel folder, from its files alone.
+
+    Returns:
+        ``lumen_open``, ``wall_closed``, ``hull_count``, ``compiles`` (MuJoCo loads
+        ``scene.xml``; any warning counts as a failure) and ``passed``.
+    """
+    import mujoco
+
+    from sim4endor.vessels.mjcf_writer import HULL_DIR, LUMEN_FILE
+
+    params = params or CheckParams()
+    hulls = [
+        h
+        for path in sorted((vessel.root / HULL_DIR).glob("*.stl"))
+        if (h := convex_hull(np.asarray(_mesh(path).vertices))) is not None
+    ]
+    lumen = _mesh(vessel.root / LUMEN_FILE)
+    inlet = vessel.manifest.inlet
+    walled = ~inlet_cap(lumen, vessel.inlet_position, vessel.inlet_direction, inlet.radius)
+    thickness = float(vessel.manifest.build.get("wall", {}).get("thickness", 0.8e-3))
+    axis = sample_axis(vessel.centerline)
+    lumen_open, _ = lumen_open_fraction(hulls, axis, params)
+    probes = wall_probes(
+        np.asarray(lumen.vertices),
+        np.asarray(lumen.faces),
+        np.asarray(lumen.vertex_normals),
+        np.asarray(lumen.face_normals),
+        walled,
+        thickness,
+    )
+    wall_closed = wall_closed_fraction(hulls, probes, slack=1e-3 * float(axis.radius.min()))
+    model = mujoco.MjModel.from_xml_path(str(vessel.scene_path))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    compiles = int(sum(w.number for w in data.warning)) == 0
+    passed = (
+        lumen_open >= params.min_lumen_open and wall_closed >= params.min_wall_closed and compiles
+    )
+    return {
+        "lumen_open": lumen_open,
+        "wall_closed": wall_closed,
+        "hull_count": len(hulls),
+        "compiles": compiles,
+        "passed": bool(passed),
+    }
