@@ -138,7 +138,7 @@ def _loop_is_side_hole(mesh: trimesh.Trimesh, loop: NDArray[np.int64]) -> bool:
         np.concatenate([mesh.vertex_faces[v][mesh.vertex_faces[v] >= 0] for v in loop])
     )
     alignment = np.abs(mesh.face_normals[faces] @ plane_normal)
-    return bool(np.median(alignment) > 0.7)
+    return bool(np.median(alignment) > 0.5)
 
 
 def estimate_radius(mesh: trimesh.Trimesh, samples: int = 256, seed: int = 0) -> float:

@@ -10,7 +10,7 @@
    ``invalidation_scale`` radii of a traced path are covered; repeat until all are covered.
    (``skimage.morphology.skeletonize`` was not used: in scikit-image 0.26 it deletes
    even-width tubes entirely.) Path ends that hook to the cap are trimmed where the radius drops
-   below 70 % of the branch radius; spurs shorter than ``spur_length`` radii are pruned.
+   below 90 % of the branch radius; spurs shorter than ``spur_length`` radii are pruned.
 4. Each branch is resampled every ``node_spacing`` radii and smoothed; vessel ends are extended
    by their radius along the end tangent, because the trimmed paths stop short of a cap.
 """
@@ -202,7 +202,7 @@ def _trim_hook(path: list[int], dbf: FloatArray) -> list[int]:
     """Drops the start of a path (at a vessel end) where it leaves the axis towards the cap."""
     values = dbf[path]
     window = values[: max(3, int(np.ceil(4 * values.max())))]
-    keep_from = int(np.argmax(values >= 0.7 * window.max()))
+    keep_from = int(np.argmax(values >= 0.9 * window.max()))
     return path[keep_from:] if len(path) - keep_from >= 2 else path
 
 
@@ -283,7 +283,7 @@ def extract_centerline(
     if len(edges) == 0:
         raise SkeletonError("Centerline extraction found no skeleton; pass --centerline.")
     points = origin + coords * pitch
-    radii = np.maximum(dbf * pitch - 0.5 * pitch, 0.5 * pitch)
+    radii = dbf * pitch  # distance to the nearest outside voxel centre: >= 1 pitch
     used = np.unique(edges)
     remap = np.full(len(points), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))

@@ -1,0 +1,110 @@
+"""Bad input meshes give clear errors or documented repairs, and nothing half-written."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from sim4endor.cli import main
+from sim4endor.vessels.meshio import MeshInputError, prepare_lumen, read_mesh
+
+
+def tube(radius: float = 1.5e-3, height: float = 20e-3) -> trimesh.Trimesh:
+    return trimesh.creation.cylinder(radius=radius, height=height, sections=24).subdivide_to_size(
+        height / 10
+    )
+
+
+def test_empty_file(tmp_path: Path) -> None:
+    path = tmp_path / "empty.stl"
+    path.write_bytes(b"")
+    with pytest.raises(MeshInputError, match="empty"):
+        read_mesh(path)
+
+
+def test_not_a_mesh(tmp_path: Path) -> None:
+    path = tmp_path / "notes.obj"
+    path.write_text("this is not a mesh\n")
+    with pytest.raises(MeshInputError, match=str(path)):
+        read_mesh(path)
+
+
+def test_unsupported_suffix(tmp_path: Path) -> None:
+    path = tmp_path / "scan.nii"
+    path.write_bytes(b"\x00" * 10)
+    with pytest.raises(MeshInputError, match="unsupported"):
+        read_mesh(path)
+
+
+def test_wrong_units_suggests_the_other() -> None:
+    with pytest.raises(MeshInputError, match="--units m"):
+        prepare_lumen(tube(), units="mm")  # a metre mesh declared as mm: 1.5 µm radius
+    big = tube()
+    big.apply_scale(1e3)
+    with pytest.raises(MeshInputError, match="--units mm"):
+        prepare_lumen(big, units="m")  # a mm mesh declared as m: 1.5 m radius
+
+
+def test_radius_estimate_and_scale() -> None:
+    prepared = prepare_lumen(tube(), units="m")
+    assert prepared.radius_estimate == pytest.approx(1.5e-3, rel=0.1)
+    assert prepared.scale == 1.0 and prepared.report.open_ends == 0
+
+
+def test_disconnected_parts_error_and_keep_largest() -> None:
+    small = trimesh.creation.cylinder(radius=1e-3, height=5e-3, sections=12)
+    small.apply_translation([10e-3, 0, 0])
+    both = trimesh.util.concatenate([tube(), small])
+    with pytest.raises(MeshInputError, match="keep-largest"):
+        prepare_lumen(both, units="m")
+    prepared = prepare_lumen(both, units="m", keep_largest=True)
+    assert len(prepared.report.dropped_components) == 1
+    assert len(prepared.mesh.faces) == len(tube().faces)
+
+
+def test_degenerate_faces_are_removed() -> None:
+    mesh = tube()
+    faces = np.vstack([mesh.faces, [[0, 0, 1]], mesh.faces[:1]])  # repeated vertex + duplicate
+    prepared = prepare_lumen(trimesh.Trimesh(mesh.vertices, faces, process=False), units="m")
+    assert prepared.report.removed_faces == 2
+    assert prepared.mesh.is_watertight
+
+
+def test_small_hole_is_filled_large_hole_is_an_error() -> None:
+    mesh = tube()
+    side = np.flatnonzero(np.abs(mesh.face_normals[:, 2]) < 0.1)
+    one = mesh.copy()
+    one.update_faces(np.setdiff1d(np.arange(len(mesh.faces)), side[:1]))
+    prepared = prepare_lumen(one, units="m")
+    assert prepared.report.filled_holes == 1 and prepared.mesh.is_watertight
+    centres = mesh.triangles_center[side]
+    facing_x = centres[:, 0] > 0.7 * np.linalg.norm(centres[:, :2], axis=1)
+    window = side[(np.abs(centres[:, 2]) < 4e-3) & facing_x]
+    many = mesh.copy()
+    many.update_faces(np.setdiff1d(np.arange(len(mesh.faces)), window))
+    with pytest.raises(MeshInputError, match="hole in the vessel wall"):
+        prepare_lumen(many, units="m")
+
+
+def test_open_ends_are_kept_not_filled() -> None:
+    mesh = tube()
+    keep = np.abs(mesh.face_normals[:, 2]) < 0.5  # drop both caps
+    mesh.update_faces(keep)
+    mesh.remove_unreferenced_vertices()
+    prepared = prepare_lumen(mesh, units="m")
+    assert prepared.report.open_ends == 2 and prepared.report.filled_holes == 0
+
+
+def test_cli_error_is_one_line_and_leaves_nothing(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "tube.stl"
+    tube().export(path)
+    out = tmp_path / "out"
+    status = main(["vessel", "build", str(path), "--name", "x", "--out", str(out),
+                   "--units", "mm", "--no-progress", "--no-cache"])
+    err = capsys.readouterr().err.strip()
+    assert status == 2 and "--units m" in err and len(err.splitlines()) == 1
+    assert not out.exists() and not any(p.name.startswith(".out") for p in tmp_path.iterdir())
