@@ -170,3 +170,16 @@ def test_cli_build_check_list(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     monkeypatch.setenv("SIM4ENDOR_VESSEL_PATH", str(tmp_path / "vessels"))
     assert main(["vessel", "list"]) == 0
     assert "clitube" in capsys.readouterr().out.split()
+
+
+def test_open_ended_tube_with_extracted_centerline(tmp_path: Path) -> None:
+    tube, _ = straight_tube()
+    tube.update_faces(np.abs(tube.face_normals[:, 2]) < 0.5)  # no caps: open vessel ends
+    tube.remove_unreferenced_vertices()
+    vessel = build_vessel(tube, name="open", out_dir=tmp_path / "open", params=SERIAL,
+                          progress=False, cache=False)
+    assert vessel.manifest.build["repairs"]["open_ends"] == 2
+    assert vessel.centerline.total_length() == pytest.approx(L, rel=0.1)
+    assert abs(float(vessel.inlet_direction[2])) == pytest.approx(1.0, abs=0.05)
+    assert vessel.manifest.checks["lumen_open"] >= 0.99
+    assert vessel.manifest.checks["wall_closed"] >= 0.95

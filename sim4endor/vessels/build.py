@@ -121,13 +121,13 @@ def _progress(enabled: bool, desc: str) -> object:
 
 
 def _terminal_direction(graph: CenterlineGraph, node: int) -> np.ndarray:
-    """Unit vector from a vessel end into the vessel, over about one radius of the graph."""
+    """Unit vector from a vessel end into the vessel, over about two radii of the graph."""
     chain = next(c for c in branch_chains(graph) if node in (c[0], c[-1]))
     if chain[0] != node:
         chain = chain[::-1]
     points = graph.nodes[chain]
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-    reach = min(float(arc[-1]), max(float(graph.radii[node]), 1e-9))
+    reach = min(float(arc[-1]), max(2.0 * float(graph.radii[node]), 1e-9))
     ahead = np.array([np.interp(reach, arc, points[:, k]) for k in range(3)])
     direction = ahead - graph.nodes[node]
     return direction / np.linalg.norm(direction)

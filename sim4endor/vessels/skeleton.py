@@ -176,7 +176,10 @@ def _assemble(
 
     for chain in branch_chains(skeleton):
         p, r = points[chain], radii[chain]
-        for end, nbr in ((0, 1), (-1, -2)):  # extend vessel ends to the cap
+        # Extend vessel ends to the cap, along the direction over the last two radii (the last
+        # voxel step alone is often diagonal).
+        back = min(len(chain) - 1, max(1, int(round(2 * float(r.max()) / pitch))))
+        for end, nbr in ((0, back), (-1, -1 - back)):
             if degree[chain[end]] == 1 and len(chain) > 1:
                 t = p[end] - p[nbr]
                 p[end] = p[end] + t / max(np.linalg.norm(t), 1e-30) * r[end] * 0.8
