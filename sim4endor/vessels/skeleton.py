@@ -178,7 +178,7 @@ def _assemble(
         p, r = points[chain], radii[chain]
         # Extend vessel ends to the cap, along the direction over the last two radii (the last
         # voxel step alone is often diagonal).
-        back = min(len(chain) - 1, max(1, int(round(2 * float(r.max()) / pitch))))
+        back = min(len(chain) - 1, max(1, round(2 * float(r.max()) / pitch)))
         for end, nbr in ((0, back), (-1, -1 - back)):
             if degree[chain[end]] == 1 and len(chain) > 1:
                 t = p[end] - p[nbr]
