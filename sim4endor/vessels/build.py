@@ -91,9 +91,18 @@ def _package_version() -> str:
         return "unknown"
 
 
-def content_hash(lumen: trimesh.Trimesh, **inputs: object) -> str:
-    """Returns a SHA-256 over the mesh arrays, the other inputs and the package version."""
+def _pipeline_source_digest() -> bytes:
+    """Hash of the build pipeline's own source, so a code change never reuses a stale build."""
     digest = hashlib.sha256()
+    for path in sorted(Path(__file__).parent.glob("*.py")):
+        digest.update(path.read_bytes())
+    return digest.digest()
+
+
+def content_hash(lumen: trimesh.Trimesh, **inputs: object) -> str:
+    """Returns a SHA-256 over the mesh, the other inputs, the version and the pipeline source."""
+    digest = hashlib.sha256()
+    digest.update(_pipeline_source_digest())
     digest.update(np.ascontiguousarray(lumen.vertices, dtype=np.float64).tobytes())
     digest.update(np.ascontiguousarray(lumen.faces, dtype=np.int64).tobytes())
     digest.update(json.dumps(inputs, sort_keys=True, default=_jsonable).encode())
