@@ -22,7 +22,7 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -120,13 +120,20 @@ def _jsonable(value: object) -> object:
     raise TypeError(f"cannot hash {type(value).__name__}")
 
 
-def _progress(enabled: bool, desc: str) -> object:
+def _progress(
+    enabled: bool, desc: str
+) -> Callable[[Iterator[list[Hull]], int], Iterator[list[Hull]]]:
     def wrap(items: Iterator[list[Hull]], total: int) -> Iterator[list[Hull]]:
         return iter(
             tqdm(items, total=total, desc=desc, unit="piece", disable=not enabled, leave=False)
         )
 
     return wrap
+
+
+def _vec3(value: np.ndarray) -> tuple[float, float, float]:
+    x, y, z = (float(v) for v in np.asarray(value).reshape(3))
+    return (x, y, z)
 
 
 def _terminal_direction(graph: CenterlineGraph, node: int) -> np.ndarray:
@@ -304,7 +311,7 @@ def build_vessel(
         face_angle=face_angle,
         params=params.wall,
     )
-    hulls = build_hulls(ctx, pieces, progress=_progress(show, f"{name}: wall hulls"))  # type: ignore[arg-type]
+    hulls = build_hulls(ctx, pieces, progress=_progress(show, f"{name}: wall hulls"))
     lumen_open, probe_count = lumen_open_fraction(hulls, axis, params.checks)
     probes = wall_probes(
         ctx.vertices, ctx.faces, ctx.vertex_normals, ctx.face_normals, walled, params.wall.thickness
@@ -334,8 +341,8 @@ def build_vessel(
         source=source,
         units=units,
         mesh_to_model=tuple(tuple(float(x) for x in row) for row in matrix),
-        inlet=Inlet(tuple(map(float, inlet_pos)), tuple(map(float, inlet_dir)), inlet_radius),  # type: ignore[arg-type]
-        targets={k: tuple(map(float, v)) for k, v in target_points.items()},  # type: ignore[misc]
+        inlet=Inlet(_vec3(inlet_pos), _vec3(inlet_dir), inlet_radius),
+        targets={k: _vec3(v) for k, v in target_points.items()},
         build={**asdict(params), "repairs": asdict(prepared.report)},
         hull_count=len(hulls),
         mjcf=f"{name}.xml",
