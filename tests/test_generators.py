@@ -332,7 +332,6 @@ def test_generate_vessel_rejects_bad_input_before_building(tmp_path) -> None:
     assert not (tmp_path / "x").exists()
 
 
-@pytest.mark.slow
 def test_generate_command_builds_a_loadable_coronary_vessel(tmp_path, monkeypatch) -> None:
     from sim4endor import vessels
     from sim4endor.cli import main
