@@ -7,6 +7,11 @@ from pathlib import Path
 
 import pytest
 
+# Tests render offscreen; pick OSMesa before dm_control is imported, as the CLI does when
+# there is no display (dm_control's default GLFW backend warns and cannot render headless).
+if not os.environ.get("DISPLAY"):
+    os.environ.setdefault("MUJOCO_GL", "osmesa")
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 # ../shared sits beside the checkout (see DEVELOPERS.md); SIM4ENDOR_SHARED overrides it.
 SHARED_DIR = Path(os.environ.get("SIM4ENDOR_SHARED", REPO_ROOT.parent / "shared"))

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 from collections.abc import Sequence
 
@@ -19,6 +20,16 @@ from sim4endor.errors import Sim4EndoRError
 _SUBCOMMAND_MODULES: tuple[str, ...] = (
     "vessel", "train", "evaluate", "table", "bench", "view", "render",
 )
+
+
+def _choose_headless_renderer() -> None:
+    """Selects OSMesa offscreen rendering on a machine without a display.
+
+    dm_control picks its OpenGL backend when first imported; its default (GLFW) warns on every
+    import without a display and cannot render there. A backend the user chose is kept.
+    """
+    if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+        os.environ["MUJOCO_GL"] = "osmesa"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -36,6 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Runs the command line; returns the process exit status."""
+    _choose_headless_renderer()
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(

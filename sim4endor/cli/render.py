@@ -9,7 +9,6 @@ step, the manifold distance D and the reward.
 from __future__ import annotations
 
 import argparse
-import os
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -121,7 +120,6 @@ def state_vector(observation: Any) -> np.ndarray:
 
 def render_episode(args: argparse.Namespace) -> int:
     """Runs one episode with the policy and writes the video atomically."""
-    os.environ.setdefault("MUJOCO_GL", "osmesa")
     import imageio.v2 as imageio
     from dm_control.mujoco import MovableCamera, TextOverlay
 
