@@ -17,6 +17,7 @@ Every element is addressed by its name from :mod:`sim4endor.models.constants`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -44,6 +45,8 @@ class _Indices:
     tip_site: int
     wire_geoms: NDArray[np.bool_]
     wall_geoms: NDArray[np.bool_]
+    actuators: tuple[int, int]  # insertion, rotation
+    joint_qpos: tuple[int, int]  # qpos addresses of the insertion and rotation joints
 
 
 class GuidewirePhysics(dm_mujoco.Physics):
@@ -93,6 +96,14 @@ class GuidewirePhysics(dm_mujoco.Physics):
             tip_site=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE),
             wire_geoms=np.isin(model.geom_bodyid, bodies) & (model.geom_contype > 0),
             wall_geoms=(model.geom_contype & 2).astype(bool) & (model.geom_bodyid != sheath),
+            actuators=(
+                mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, names.INSERTION_ACTUATOR),
+                mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, names.ROTATION_ACTUATOR),
+            ),
+            joint_qpos=tuple(  # type: ignore[arg-type]
+                int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)])
+                for j in (names.INSERTION_JOINT, names.ROTATION_JOINT)
+            ),
         )
         self._index_cache = indices
         return indices
@@ -120,11 +131,11 @@ class GuidewirePhysics(dm_mujoco.Physics):
 
     def insertion_depth(self) -> float:
         """Carriage insertion (m) from its start; the tip has advanced about as much."""
-        return _scalar(self.named.data.qpos[names.INSERTION_JOINT])
+        return float(self.data.qpos[self._indices().joint_qpos[0]])
 
     def rotation_angle(self) -> float:
         """Carriage rotation about the insertion axis (rad), 0 = tip bent 'up'."""
-        return _scalar(self.named.data.qpos[names.ROTATION_JOINT])
+        return float(self.data.qpos[self._indices().joint_qpos[1]])
 
     # ------------------------------------------------------------------------- contacts
     def wall_contact_forces(self) -> FloatArray:
@@ -161,8 +172,8 @@ class GuidewirePhysics(dm_mujoco.Physics):
     # -------------------------------------------------------------------------- driving
     def driver_targets(self) -> tuple[float, float]:
         """Current servo targets (insertion m, rotation rad)."""
-        ctrl = self.named.data.ctrl
-        return _scalar(ctrl[names.INSERTION_ACTUATOR]), _scalar(ctrl[names.ROTATION_ACTUATOR])
+        insertion, rotation = self._indices().actuators
+        return float(self.data.ctrl[insertion]), float(self.data.ctrl[rotation])
 
     def set_driver_targets(self, insertion: float, rotation: float) -> None:
         """Sets the servo targets, clipped to the driver's ranges (m, rad).
@@ -172,13 +183,12 @@ class GuidewirePhysics(dm_mujoco.Physics):
         shoves the (mass-scaled, ~1 kg) wire at its force limit from rest, broke the wire out
         of a 2 mm tube in 6–8 of 8 tries, while increments at up to 45 mm/s never did.
         """
-        model = self.named.model
-        targets = ((names.INSERTION_ACTUATOR, insertion), (names.ROTATION_ACTUATOR, rotation))
-        for name, value in targets:
-            if not np.isfinite(value):
+        for actuator, value in zip(self._indices().actuators, (insertion, rotation), strict=True):
+            if not math.isfinite(value):
+                name = mujoco.mj_id2name(self.model.ptr, mujoco.mjtObj.mjOBJ_ACTUATOR, actuator)
                 raise ValueError(f"Driver target for {name} must be finite, got {value}.")
-            low, high = model.actuator_ctrlrange[name]
-            self.named.data.ctrl[name] = float(np.clip(value, low, high))
+            low, high = self.model.actuator_ctrlrange[actuator]
+            self.data.ctrl[actuator] = min(max(float(value), low), high)
 
     def place_driver(self, insertion: float, rotation: float) -> None:
         """Moves the carriage (and the wire with it, rigidly) to a pose and holds it there.
@@ -187,9 +197,8 @@ class GuidewirePhysics(dm_mujoco.Physics):
         small offsets of an initial state but would teleport a wire that is in contact.
         """
         self.set_driver_targets(insertion, rotation)
-        insertion, rotation = self.driver_targets()
-        self.named.data.qpos[names.INSERTION_JOINT] = insertion
-        self.named.data.qpos[names.ROTATION_JOINT] = rotation
+        for address, value in zip(self._indices().joint_qpos, self.driver_targets(), strict=True):
+            self.data.qpos[address] = value
 
     def max_speeds(self) -> tuple[float, float]:
         """The driver's speed limits (m/s, rad/s)."""
@@ -226,4 +235,7 @@ class GuidewirePhysics(dm_mujoco.Physics):
 
     def is_finite(self) -> bool:
         """Whether positions and velocities are all finite."""
-        return bool(np.all(np.isfinite(self.data.qpos)) and np.all(np.isfinite(self.data.qvel)))
+        # A NaN or inf anywhere makes the sum non-finite: one reduction per array.
+        return math.isfinite(float(self.data.qpos.sum())) and math.isfinite(
+            float(self.data.qvel.sum())
+        )

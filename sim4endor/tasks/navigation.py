@@ -200,17 +200,20 @@ class NavigationTask(base.Task):
             raise InvalidActionError(
                 f"Action must have shape (2,) = [insertion, rotation], got {a.shape}."
             )
-        if not np.all(np.isfinite(a)):
+        # Plain floats: this runs every control step, and numpy calls on two numbers cost
+        # more than the arithmetic.
+        insert, rotate = float(a[0]), float(a[1])
+        if not (math.isfinite(insert) and math.isfinite(rotate)):
             raise InvalidActionError(
                 f"Action {a.tolist()} is not finite; NaN/inf actions are rejected so they "
                 "never reach MuJoCo. Check the policy's outputs."
             )
-        a = np.clip(a, -1.0, 1.0)
+        insert, rotate = min(max(insert, -1.0), 1.0), min(max(rotate, -1.0), 1.0)
         cfg = self.config.action
         # The carriage cannot retract behind its home position: a hard stop, not a failure.
-        self._insertion = max(0.0, self._insertion + a[0] * cfg.max_insertion_step)
-        self._rotation += a[1] * cfg.max_rotation_step
-        self._last_action = a
+        self._insertion = max(0.0, self._insertion + insert * cfg.max_insertion_step)
+        self._rotation += rotate * cfg.max_rotation_step
+        self._last_action = np.array([insert, rotate])
         physics.set_driver_targets(self._insertion, self._rotation)
 
     def after_step(self, physics: control.Physics) -> None:
