@@ -8,21 +8,9 @@ The run folder gets config.yaml, resumable checkpoints, CSV logs and evaluations
 same command to resume. Same as: sim4endor train sac --config experiments/sac/config.yaml.
 """
 
-import argparse
-import json
 from pathlib import Path
 
-from sim4endor.rl.trainer import train_from_file
-
-
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("runs/sac"), help="run folder")
-    parser.add_argument("overrides", nargs="*", help="section.field=value overrides")
-    args = parser.parse_args()
-    config_path = Path(__file__).with_name("config.yaml")
-    print(json.dumps(train_from_file(config_path, args.out, tuple(args.overrides))))
-
+from sim4endor.cli.train import experiment_script
 
 if __name__ == "__main__":
-    main()
+    experiment_script(Path(__file__).resolve().with_name("config.yaml"))

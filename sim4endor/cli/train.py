@@ -64,3 +64,22 @@ def run(args: argparse.Namespace) -> int:
     metrics = train(config, args.out, progress=not args.no_progress)
     print(json.dumps(metrics))  # noqa: T201
     return 0
+
+
+def experiment_script(config_path: Path) -> None:
+    """Entry point of the ``experiments/<algorithm>/train.py`` scripts.
+
+    Parses ``--out RUN_DIR`` and ``section.field=value`` overrides, trains the YAML config
+    ``config_path`` and prints the final metrics as one JSON line.
+    """
+    algorithm = config_path.parent.name
+    parser = argparse.ArgumentParser(
+        description=f"Train {algorithm.upper()} with {config_path} "
+        "(overrides: section.field=value).",
+    )
+    parser.add_argument("--out", type=Path, default=Path("runs") / algorithm, help="run folder")
+    parser.add_argument("overrides", nargs="*", help="section.field=value overrides")
+    args = parser.parse_args()
+    from sim4endor.rl.trainer import train_from_file
+
+    print(json.dumps(train_from_file(config_path, args.out, tuple(args.overrides))))  # noqa: T201
