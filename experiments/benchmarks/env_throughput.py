@@ -57,25 +57,33 @@ def env_loop(
             inner[0] += time.perf_counter() - start
 
     physics.step = timed_step  # instance attribute: only this benchmark's physics is timed
-    targets = []
+    # (reset?, driver targets) per step: the replay resets where the env did, from the same
+    # start pose, so both loops simulate the same trajectory.
+    commands: list[tuple[bool, tuple[float, float]]] = []
     start = time.perf_counter()
     for action in actions:
-        if env.step(action).last():
+        reset = env.step(action).last()
+        commands.append((False, physics.driver_targets()))
+        if reset:
             env.reset()
-        targets.append(physics.driver_targets())
+            commands.append((True, physics.driver_targets()))
     elapsed = time.perf_counter() - start
-    return elapsed, inner[0], targets, env._n_sub_steps, physics.timestep()
+    return elapsed, inner[0], commands, env._n_sub_steps, physics.timestep()
 
 
 def physics_loop(
-    domain: str, task: str, targets: list[tuple[float, float]], n_sub_steps: int
+    domain: str, task: str, commands: list[tuple[bool, tuple[float, float]]], n_sub_steps: int
 ) -> float:
-    """Returns the seconds to replay the same driver targets on the bare physics."""
+    """Returns the seconds to replay the same resets and driver targets on the bare physics."""
     env = suite.load(domain, task, {"random": 0})
     env.reset()
     physics = env.physics
     start = time.perf_counter()
-    for insertion, rotation in targets:
+    for reset, (insertion, rotation) in commands:
+        if reset:
+            with physics.reset_context():
+                physics.place_driver(insertion, rotation)
+            continue
         physics.set_driver_targets(insertion, rotation)
         with physics.suppress_physics_errors():
             physics.step(n_sub_steps)
@@ -129,10 +137,10 @@ def main() -> None:
     # of a shared machine.
     env_runs, physics_runs, gym_runs, overheads = [], [], [], []
     for _ in range(args.repeats):
-        env_s, inner_s, targets, n_sub, dt = env_loop(args.domain, args.task, actions)
+        env_s, inner_s, commands, n_sub, dt = env_loop(args.domain, args.task, actions)
         env_runs.append(env_s)
         overheads.append(100.0 * (env_s - inner_s) / inner_s)
-        physics_runs.append(physics_loop(args.domain, args.task, targets, n_sub))
+        physics_runs.append(physics_loop(args.domain, args.task, commands, n_sub))
         gym_runs.append(gym_loop(args.domain, args.task, actions))
     env_s, physics_s, gym_s = min(env_runs), min(physics_runs), min(gym_runs)
     result = {
