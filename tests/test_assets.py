@@ -48,5 +48,7 @@ def test_wheel_layout_carries_assets(tmp_path) -> None:
     root = Path(out[0])
     assert root == target / "sim4endor" / "_assets"
     assert (root / "mjcf").is_dir() and (root / "vessels").is_dir()
-    shipped = sorted(p.name for p in (REPO_ROOT / "vessels").iterdir() if (p / "manifest.json").is_file())
-    assert out[1].split(",") == shipped if shipped else out[1] == ""
+    shipped = sorted(
+        p.name for p in (REPO_ROOT / "vessels").iterdir() if (p / "manifest.json").is_file()
+    )
+    assert shipped and out[1].split(",") == shipped

@@ -59,6 +59,25 @@ def test_projection_reports_offset() -> None:
     np.testing.assert_allclose(proj.point, [0.010, 0.0, 0.0], atol=1e-12)
 
 
+def test_projection_matches_brute_force_over_edges() -> None:
+    g = y_graph()
+    for point in np.random.default_rng(0).uniform(-0.01, 0.06, size=(50, 3)):
+        candidates = []
+        for i, j in g.edges:
+            ab = g.nodes[j] - g.nodes[i]
+            t = float(np.clip(np.dot(point - g.nodes[i], ab) / np.dot(ab, ab), 0.0, 1.0))
+            candidates.append(g.nodes[i] + t * ab)
+        closest = min(candidates, key=lambda c: float(np.linalg.norm(point - c)))
+        proj = g.project(point)
+        np.testing.assert_allclose(proj.point, closest, atol=1e-9)
+        assert proj.distance == pytest.approx(float(np.linalg.norm(point - closest)), abs=1e-9)
+        i, j = g.edges[proj.edge]
+        np.testing.assert_allclose(
+            g.nodes[i] + proj.fraction * (g.nodes[j] - g.nodes[i]), proj.point, atol=1e-12
+        )
+        assert g.radius_at_projection(proj) == pytest.approx(1.5e-3)
+
+
 def test_curvature_weighting_penalises_bends() -> None:
     g = y_graph()
     plain = g.geodesic_from(0)[g.labels["A"]]

@@ -98,12 +98,3 @@ def test_disconnected_graph_is_rejected() -> None:
     graph = CenterlineGraph(nodes, np.full(4, MM), np.array([[0, 1], [2, 3]]), {"T": 3})
     with pytest.raises(rewards.RewardConfigError, match="not connected"):
         rewards.make_distance(rewards.RewardConfig(), graph, "T")
-
-
-def test_graph_projector_matches_the_graph_projection(graph: CenterlineGraph) -> None:
-    projector = rewards.GraphProjector(graph)
-    for point in np.random.default_rng(0).uniform(-0.01, 0.11, size=(50, 3)):
-        fast, slow = projector(point), graph.project(point)
-        assert fast.edge == slow.edge
-        assert fast.fraction == pytest.approx(slow.fraction, abs=1e-9)
-        assert fast.distance == pytest.approx(slow.distance, abs=1e-9)

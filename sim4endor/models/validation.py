@@ -150,8 +150,7 @@ def escape_depth(physics: GuidewirePhysics, vessel: Vessel, offset: float = 0.0)
     graph = vessel.centerline
     for point in points[ahead]:
         projection = graph.project(point)
-        i, j = graph.edges[projection.edge]
-        radius = (1 - projection.fraction) * graph.radii[i] + projection.fraction * graph.radii[j]
+        radius = graph.radius_at_projection(projection)
         worst = max(worst, projection.distance + offset - radius)
     return worst
 

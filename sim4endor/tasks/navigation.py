@@ -84,9 +84,7 @@ def lumen_excess(anatomy: Anatomy, point: FloatArray, proj: Projection | None = 
         return -math.inf
     graph = vessel.centerline
     proj = proj or graph.project(point)
-    i, j = graph.edges[proj.edge]
-    radius = (1.0 - proj.fraction) * graph.radii[i] + proj.fraction * graph.radii[j]
-    return proj.distance - float(radius)
+    return proj.distance - graph.radius_at_projection(proj)
 
 
 class NavigationTask(base.Task):

@@ -66,6 +66,13 @@ class CenterlineGraph:
     labels: Mapping[str, int] = field(default_factory=dict)
     branch: IntArray | None = None
     branch_names: tuple[str, ...] = ()
+    # Derived in __post_init__: per-edge terms of the point-to-segment projection.
+    _edge_start: FloatArray = field(init=False, repr=False)
+    _edge_vector: FloatArray = field(init=False, repr=False)
+    _a_ab: FloatArray = field(init=False, repr=False)
+    _aa: FloatArray = field(init=False, repr=False)
+    _abab: FloatArray = field(init=False, repr=False)
+    _inv_abab: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         nodes = np.asarray(self.nodes, dtype=np.float64).reshape(-1, 3)
@@ -92,11 +99,23 @@ class CenterlineGraph:
         for name, index in self.labels.items():
             if not 0 <= int(index) < len(nodes):
                 raise CenterlineError(f"Label {name!r} points at missing node {index}.")
-        for attr, value in (("nodes", nodes), ("radii", radii), ("edges", edges), ("branch", branch)):
+        arrays = (("nodes", nodes), ("radii", radii), ("edges", edges), ("branch", branch))
+        for attr, value in arrays:
             value.setflags(write=False)
             object.__setattr__(self, attr, value)
         object.__setattr__(self, "labels", {k: int(v) for k, v in self.labels.items()})
         object.__setattr__(self, "branch_names", tuple(self.branch_names))
+        # Per-edge terms of the point-to-segment projection, computed once: the task projects
+        # the wire tip every control step, hundreds of times per second.
+        a = nodes[edges[:, 0]]
+        ab = nodes[edges[:, 1]] - a
+        abab = np.einsum("ij,ij->i", ab, ab)
+        object.__setattr__(self, "_edge_start", a)
+        object.__setattr__(self, "_edge_vector", ab)
+        object.__setattr__(self, "_a_ab", np.einsum("ij,ij->i", a, ab))
+        object.__setattr__(self, "_aa", np.einsum("ij,ij->i", a, a))
+        object.__setattr__(self, "_abab", abab)
+        object.__setattr__(self, "_inv_abab", 1.0 / np.maximum(abab, 1e-30))
 
     # ----------------------------------------------------------------------------- geometry
     @property
@@ -177,14 +196,21 @@ class CenterlineGraph:
     def project(self, point: FloatArray) -> Projection:
         """Returns the closest point of the graph's edges to ``point``."""
         p = np.asarray(point, dtype=np.float64).reshape(3)
-        a, b = self.nodes[self.edges[:, 0]], self.nodes[self.edges[:, 1]]
-        ab = b - a
-        denom = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-30)
-        t = np.clip(np.einsum("ij,ij->i", p - a, ab) / denom, 0.0, 1.0)
-        closest = a + t[:, None] * ab
-        dist = np.linalg.norm(closest - p, axis=1)
-        k = int(np.argmin(dist))
-        return Projection(edge=k, fraction=float(t[k]), point=closest[k], distance=float(dist[k]))
+        a, ab = self._edge_start, self._edge_vector
+        p_a, p_ab = a @ p, ab @ p
+        t = np.clip((p_ab - self._a_ab) * self._inv_abab, 0.0, 1.0)
+        # |p - (a + t ab)|^2 expanded so that no (E, 3) temporaries are needed.
+        d2 = p @ p - 2.0 * p_a + self._aa - 2.0 * t * (p_ab - self._a_ab) + t * t * self._abab
+        k = int(np.argmin(d2))
+        closest = a[k] + t[k] * ab[k]
+        return Projection(
+            edge=k, fraction=float(t[k]), point=closest, distance=float(np.linalg.norm(p - closest))
+        )
+
+    def radius_at_projection(self, proj: Projection) -> float:
+        """Returns the lumen radius (m) interpolated at a projection onto the graph."""
+        i, j = self.edges[proj.edge]
+        return float((1.0 - proj.fraction) * self.radii[i] + proj.fraction * self.radii[j])
 
     def distance_along(self, point: FloatArray, node_distances: FloatArray) -> float:
         """Returns the manifold distance from ``point`` to the source of ``node_distances``.
@@ -218,12 +244,8 @@ class CenterlineGraph:
 
     def radius_at(self, points: FloatArray) -> FloatArray:
         """Returns the lumen radius interpolated at the projections of ``points`` (m)."""
-        out = np.empty(len(points))
-        for k, p in enumerate(np.asarray(points, dtype=np.float64).reshape(-1, 3)):
-            proj = self.project(p)
-            i, j = self.edges[proj.edge]
-            out[k] = (1 - proj.fraction) * self.radii[i] + proj.fraction * self.radii[j]
-        return out
+        query = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        return np.array([self.radius_at_projection(self.project(p)) for p in query])
 
     def transformed(self, matrix: FloatArray) -> CenterlineGraph:
         """Returns the graph moved by a 4×4 similarity transform (radii scaled with it)."""
