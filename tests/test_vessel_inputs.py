@@ -89,6 +89,21 @@ def test_small_hole_is_filled_large_hole_is_an_error() -> None:
         prepare_lumen(many, units="m")
 
 
+def test_inward_wound_mesh_is_turned_outward_with_fresh_normals() -> None:
+    """The shared real anatomy is wound inward; a stale normal cache once grew its wall inward."""
+    inward = tube()
+    inward = trimesh.Trimesh(inward.vertices, inward.faces[:, ::-1], process=False)
+    assert inward.volume < 0
+    mesh = prepare_lumen(inward, units="m").mesh
+    assert mesh.volume > 0
+    triangles = mesh.triangles
+    winding = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    assert np.all(np.einsum("ij,ij->i", winding, mesh.face_normals) > 0)
+    radial = mesh.triangles_center[:, :2]
+    side = np.abs(mesh.face_normals[:, 2]) < 0.5
+    assert np.all(np.einsum("ij,ij->i", radial[side], mesh.face_normals[side, :2]) > 0)
+
+
 def test_open_ends_are_kept_not_filled() -> None:
     mesh = tube()
     keep = np.abs(mesh.face_normals[:, 2]) < 0.5  # drop both caps

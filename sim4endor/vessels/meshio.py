@@ -242,7 +242,10 @@ def prepare_lumen(
     work.apply_scale(scale)
     trimesh.repair.fix_winding(work)
     if work.is_watertight and work.volume < 0:
-        work.invert()
+        # A new mesh, not Trimesh.invert(): in trimesh 5.2 invert() leaves the cached face
+        # normals pointing against the new winding, and the wall would then grow into the lumen.
+        work = trimesh.Trimesh(work.vertices, np.ascontiguousarray(work.faces[:, ::-1]),
+                               process=False)
 
     radius = estimate_radius(work)
     if not PLAUSIBLE_RADIUS[0] <= radius <= PLAUSIBLE_RADIUS[1]:
