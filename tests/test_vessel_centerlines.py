@@ -93,6 +93,10 @@ def test_slicer_curves_join_into_a_tree(tmp_path: Path) -> None:
     assert len(graph.terminal_nodes()) == 3 and (graph.degrees() == 3).sum() == 1
     assert graph.radii.max() == pytest.approx(1.5e-3)
     assert graph.nodes[:, 0].max() == pytest.approx(0.03)
+    # Every node names its curve file (registration errors name the curve).
+    assert graph.branch_names == ("c0", "c1", "c2") and graph.branch is not None
+    assert graph.branch[int(np.argmax(graph.nodes[:, 0]))] == 1
+    assert graph.branch[int(np.argmin(graph.nodes[:, 1]))] == 2
 
 
 def test_slicer_ras_is_flipped_into_lps(tmp_path: Path) -> None:

@@ -56,6 +56,7 @@ def run_build(args: argparse.Namespace) -> int:
     from sim4endor.vessels.build import BuildParams, build_vessel
     from sim4endor.vessels.centerline import CenterlineGraph
     from sim4endor.vessels.meshio import read_mesh
+    from sim4endor.vessels.register import RegistrationParams
     from sim4endor.vessels.slicer import read_slicer_centerline
     from sim4endor.vessels.walls import WallParams
 
@@ -84,6 +85,7 @@ def run_build(args: argparse.Namespace) -> int:
         inlet=args.inlet,
         targets=dict(args.target) if args.target else None,
         params=params,
+        registration=None if args.no_register else RegistrationParams(),
         source=args.source or str(args.mesh),
         license_text=license_text,
         readme_text=args.readme_text,
@@ -133,6 +135,12 @@ def add_build_parser(subparsers: Any) -> None:
         default=None,
         help="centerline: Slicer .mrk.json files or a folder of them, or a centerline.json "
         "(metres); default: extracted from the mesh",
+    )
+    parser.add_argument(
+        "--no-register",
+        action="store_true",
+        help="use the given centerline as is (default: register it onto this lumen: centre "
+        "each point, trim curve ends past a vessel end, radius at most the clearance)",
     )
     parser.add_argument(
         "--mesh-frame",

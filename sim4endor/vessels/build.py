@@ -47,6 +47,7 @@ from sim4endor.vessels.checks import (
 from sim4endor.vessels.manifest import Inlet, Manifest
 from sim4endor.vessels.meshio import UNIT_SCALE, capped, prepare_lumen
 from sim4endor.vessels.mjcf_writer import write_meshes, write_scene, write_vessel_mjcf
+from sim4endor.vessels.register import RegistrationParams, register_centerline
 from sim4endor.vessels.skeleton import SkeletonParams, extract_centerline
 from sim4endor.vessels.walls import Hull, WallContext, WallParams, bin_faces, build_hulls
 
@@ -221,6 +222,7 @@ def build_vessel(
     inlet: np.ndarray | None = None,
     targets: Mapping[str, np.ndarray] | None = None,
     params: BuildParams = BuildParams(),
+    registration: RegistrationParams | None = None,
     source: str = "",
     license_text: str | None = None,
     readme_text: str = "",
@@ -238,6 +240,8 @@ def build_vessel(
         inlet: Inlet point (input units); None takes the end of the widest terminal branch.
         targets: Named target points (input units); None names the other ends ``T1``...
         params: Build parameters.
+        registration: Register the given ``centerline`` onto this lumen first (see
+            :mod:`.register`; for curves made on another surface). None uses it as given.
         source: Provenance line for the manifest and README.
         license_text: Written as LICENSE when the data came from elsewhere.
         readme_text: Extra README paragraph (provenance, how it was made).
@@ -258,6 +262,7 @@ def build_vessel(
         inlet=inlet,
         targets=dict(targets) if targets is not None else None,
         params=params,
+        registration=registration,
         source=source,
         license=license_text,
         readme=readme_text,
@@ -278,6 +283,11 @@ def build_vessel(
         max_hole_perimeter=params.max_hole_perimeter,
     )
     scale = UNIT_SCALE[units]
+    given_centerline, registration_report = centerline, None
+    if centerline is not None and registration is not None:
+        centerline, registration_report = register_centerline(
+            centerline, capped(prepared), registration, params.checks.clearance
+        )
     if centerline is None:
         centerline = extract_centerline(
             capped(prepared), params.skeleton, radius_hint=prepared.radius_estimate
@@ -317,6 +327,12 @@ def build_vessel(
         ctx.vertices, ctx.faces, ctx.vertex_normals, ctx.face_normals, walled, params.wall.thickness
     )
     wall_closed = wall_closed_fraction(hulls, probes, slack=1e-3 * float(face_radius.min()))
+    given_checks: dict[str, float] = {}
+    if given_centerline is not None and registration_report is not None:
+        # The given curves, as they came, judged against the same hulls: nothing is hidden.
+        given_checks["lumen_open_given_centerline"], _ = lumen_open_fraction(
+            hulls, sample_axis(given_centerline), params.checks
+        )
     elapsed = time.perf_counter() - start
     checks = {
         "lumen_open": lumen_open,
@@ -325,7 +341,14 @@ def build_vessel(
         "wall_probes": float(len(probes)),
         "hull_count": float(len(hulls)),
         "build_time_s": round(elapsed, 3),
+        **given_checks,
     }
+    build_record = {**asdict(params), "repairs": asdict(prepared.report)}
+    if registration is not None and registration_report is not None:
+        build_record["centerline_registration"] = {
+            "params": asdict(registration),
+            "report": asdict(registration_report),
+        }
     if lumen_open < params.checks.min_lumen_open or wall_closed < params.checks.min_wall_closed:
         logger.warning(
             "%s: checks below acceptance: lumen open %.4f (>= %.2f), wall closed %.4f (>= %.2f)",
@@ -343,7 +366,7 @@ def build_vessel(
         mesh_to_model=tuple(tuple(float(x) for x in row) for row in matrix),
         inlet=Inlet(_vec3(inlet_pos), _vec3(inlet_dir), inlet_radius),
         targets={k: _vec3(v) for k, v in target_points.items()},
-        build={**asdict(params), "repairs": asdict(prepared.report)},
+        build=build_record,
         hull_count=len(hulls),
         mjcf=f"{name}.xml",
         checks=checks,

@@ -103,6 +103,9 @@ def read_curve(path: Path, mesh_frame: Frame = "LPS") -> list[Curve]:
 def join_curves(curves: Sequence[Curve], join_tolerance: float = 0.5) -> CenterlineGraph:
     """Joins curves into one graph (m); see the module docstring for the rule.
 
+    Each node's ``branch`` is its curve (``branch_names`` are the file stems), so later steps
+    can name the curve a problem comes from.
+
     Args:
         curves: The curves.
         join_tolerance: An end point joins the nearest point of another curve within this many
@@ -139,7 +142,10 @@ def join_curves(curves: Sequence[Curve], join_tolerance: float = 0.5) -> Centerl
     merged_edges = remap[edges]
     merged_edges = merged_edges[merged_edges[:, 0] != merged_edges[:, 1]]
     merged_edges = np.unique(np.sort(merged_edges, axis=1), axis=0)
-    graph = CenterlineGraph(points[keep], radii[keep], merged_edges)
+    names = tuple(dict.fromkeys(c.name for c in curves))
+    branch = np.array([names.index(curves[c].name) for c in owner[keep]], dtype=np.int64)
+    graph = CenterlineGraph(points[keep], radii[keep], merged_edges, branch=branch,
+                            branch_names=names)
     if graph.num_components() > 1:
         raise SlicerCurveError(
             f"The {len(curves)} centerline curves form {graph.num_components()} separate pieces: "
