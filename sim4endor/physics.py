@@ -43,10 +43,18 @@ class _Indices:
     model: mujoco.MjModel
     wire_bodies: NDArray[np.int64]
     tip_site: int
-    wire_geoms: NDArray[np.bool_]
-    wall_geoms: NDArray[np.bool_]
+    geom_class: NDArray[np.int8]  # 1: wire segment, 2: vessel wall, 0: anything else
     actuators: tuple[int, int]  # insertion, rotation
     joint_qpos: tuple[int, int]  # qpos addresses of the insertion and rotation joints
+
+
+def _geom_classes(
+    model: mujoco.MjModel, wire_bodies: NDArray[np.int64], sheath: int
+) -> NDArray[np.int8]:
+    """Returns 1 for colliding wire geoms, 2 for vessel-wall geoms, 0 for the rest."""
+    wire = np.isin(model.geom_bodyid, wire_bodies) & (model.geom_contype > 0)
+    wall = (model.geom_contype & 2).astype(bool) & (model.geom_bodyid != sheath)
+    return np.where(wire, 1, np.where(wall, 2, 0)).astype(np.int8)
 
 
 class GuidewirePhysics(dm_mujoco.Physics):
@@ -94,8 +102,7 @@ class GuidewirePhysics(dm_mujoco.Physics):
             model=model,
             wire_bodies=bodies,
             tip_site=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE),
-            wire_geoms=np.isin(model.geom_bodyid, bodies) & (model.geom_contype > 0),
-            wall_geoms=(model.geom_contype & 2).astype(bool) & (model.geom_bodyid != sheath),
+            geom_class=_geom_classes(model, bodies, sheath),
             actuators=(
                 mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, names.INSERTION_ACTUATOR),
                 mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, names.ROTATION_ACTUATOR),
@@ -114,7 +121,7 @@ class GuidewirePhysics(dm_mujoco.Physics):
 
     def tip_position(self) -> FloatArray:
         """World position of the wire's distal end (m), shape (3,)."""
-        return self.data.site_xpos[self._indices().tip_site].copy()
+        return self.data.ptr.site_xpos[self._indices().tip_site].copy()
 
     def tip_velocity(self) -> FloatArray:
         """World linear velocity of the wire's distal end (m/s), shape (3,)."""
@@ -149,21 +156,20 @@ class GuidewirePhysics(dm_mujoco.Physics):
             mujoco.mj_fwdAcceleration(model, data)
             mujoco.mj_fwdConstraint(model, data)
         contacts = data.contact
-        indices = self._indices()
-        wire, wall = indices.wire_geoms, indices.wall_geoms
-        g1, g2 = contacts.geom1[: data.ncon], contacts.geom2[: data.ncon]
-        hits = np.flatnonzero((wire[g1] & wall[g2]) | (wire[g2] & wall[g1]))
+        # Geom classes 1 (wire) and 2 (wall): a wire–wall pair is the only product equal to 2.
+        geom_class = self._indices().geom_class
+        pair = geom_class[contacts.geom1] * geom_class[contacts.geom2]
+        hits = np.flatnonzero(pair == 2)
         address = contacts.efc_address[hits]
         hits, address = hits[address >= 0], address[address >= 0]
         if model.opt.cone != mujoco.mjtCone.mjCONE_PYRAMIDAL:
             return data.efc_force[address].copy()
-        # A pyramidal contact's normal force is the sum of its 2(dim-1) edge forces (as in
-        # mj_contactForce, vectorised); a frictionless contact has one row.
+        # A pyramidal contact's normal force is the sum of its 2(dim-1) consecutive edge forces
+        # (as in mj_contactForce); a frictionless contact has one row. Vectorised through a
+        # cumulative sum over the constraint rows.
         rows = np.maximum(2 * (contacts.dim[hits] - 1), 1)
-        offsets = np.arange(rows.max(initial=1))
-        mask = offsets[None, :] < rows[:, None]
-        index = np.where(mask, address[:, None] + offsets[None, :], 0)
-        return np.where(mask, data.efc_force[index], 0.0).sum(axis=1)
+        cumulative = np.concatenate(([0.0], np.cumsum(data.efc_force)))
+        return cumulative[address + rows] - cumulative[address]
 
     def wall_contact_force(self) -> float:
         """Total normal force of all wire–vessel-wall contacts (N), the task's safety signal."""
@@ -183,12 +189,15 @@ class GuidewirePhysics(dm_mujoco.Physics):
         shoves the (mass-scaled, ~1 kg) wire at its force limit from rest, broke the wire out
         of a 2 mm tube in 6–8 of 8 tries, while increments at up to 45 mm/s never did.
         """
+        # Raw MuJoCo arrays and plain floats: this runs every control step, and the wrapper's
+        # attribute views cost more than the arithmetic.
+        model, ctrl = self.model.ptr, self.data.ptr.ctrl
         for actuator, value in zip(self._indices().actuators, (insertion, rotation), strict=True):
             if not math.isfinite(value):
-                name = mujoco.mj_id2name(self.model.ptr, mujoco.mjtObj.mjOBJ_ACTUATOR, actuator)
+                name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, actuator)
                 raise ValueError(f"Driver target for {name} must be finite, got {value}.")
-            low, high = self.model.actuator_ctrlrange[actuator]
-            self.data.ctrl[actuator] = min(max(float(value), low), high)
+            low, high = model.actuator_ctrlrange[actuator].tolist()
+            ctrl[actuator] = min(max(float(value), low), high)
 
     def place_driver(self, insertion: float, rotation: float) -> None:
         """Moves the carriage (and the wire with it, rigidly) to a pose and holds it there.
@@ -236,6 +245,5 @@ class GuidewirePhysics(dm_mujoco.Physics):
     def is_finite(self) -> bool:
         """Whether positions and velocities are all finite."""
         # A NaN or inf anywhere makes the sum non-finite: one reduction per array.
-        return math.isfinite(float(self.data.qpos.sum())) and math.isfinite(
-            float(self.data.qvel.sum())
-        )
+        data = self.data.ptr
+        return math.isfinite(float(data.qpos.sum())) and math.isfinite(float(data.qvel.sum()))

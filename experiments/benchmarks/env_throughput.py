@@ -36,12 +36,13 @@ def _random_actions(steps: int, seed: int) -> np.ndarray:
 
 def env_loop(
     domain: str, task: str, actions: np.ndarray
-) -> tuple[float, float, list[tuple[float, float]], int, float]:
+) -> tuple[float, float, float, list[tuple[bool, tuple[float, float]]], int, float]:
     """Runs the dm_control env on ``actions``.
 
-    Returns seconds in total, seconds inside ``physics.step`` (timed in the same run, so the
-    difference is the env's own cost however busy the machine is), the driver targets per
-    step, sub-steps per env step and the physics timestep.
+    Returns wall-clock seconds in total, the CPU seconds of the loop and of ``physics.step``
+    within it (thread CPU time, timed in the same run, so their difference is the env's own
+    cost and time the process spends descheduled by other jobs counts in neither), the
+    driver targets per step, sub-steps per env step and the physics timestep.
     """
     env = suite.load(domain, task, {"random": 0})
     env.reset()
@@ -50,25 +51,26 @@ def env_loop(
     step = physics.step
 
     def timed_step(nstep: int = 1) -> None:
-        start = time.perf_counter()
+        start = time.thread_time()
         try:
             step(nstep)
         finally:
-            inner[0] += time.perf_counter() - start
+            inner[0] += time.thread_time() - start
 
     physics.step = timed_step  # instance attribute: only this benchmark's physics is timed
     # (reset?, driver targets) per step: the replay resets where the env did, from the same
     # start pose, so both loops simulate the same trajectory.
     commands: list[tuple[bool, tuple[float, float]]] = []
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.thread_time()
     for action in actions:
         reset = env.step(action).last()
         commands.append((False, physics.driver_targets()))
         if reset:
             env.reset()
             commands.append((True, physics.driver_targets()))
-    elapsed = time.perf_counter() - start
-    return elapsed, inner[0], commands, env._n_sub_steps, physics.timestep()
+    cpu = time.thread_time() - cpu_start
+    wall = time.perf_counter() - start
+    return wall, cpu, inner[0], commands, env._n_sub_steps, physics.timestep()
 
 
 def physics_loop(
@@ -137,9 +139,9 @@ def main() -> None:
     # of a shared machine.
     env_runs, physics_runs, gym_runs, overheads = [], [], [], []
     for _ in range(args.repeats):
-        env_s, inner_s, commands, n_sub, dt = env_loop(args.domain, args.task, actions)
+        env_s, cpu_s, inner_s, commands, n_sub, dt = env_loop(args.domain, args.task, actions)
         env_runs.append(env_s)
-        overheads.append(100.0 * (env_s - inner_s) / inner_s)
+        overheads.append(100.0 * (cpu_s - inner_s) / inner_s)
         physics_runs.append(physics_loop(args.domain, args.task, commands, n_sub))
         gym_runs.append(gym_loop(args.domain, args.task, actions))
     env_s, physics_s, gym_s = min(env_runs), min(physics_runs), min(gym_runs)
@@ -151,7 +153,7 @@ def main() -> None:
         "env_steps_per_s": args.steps / env_s,
         "gym_steps_per_s": args.steps / gym_s,
         "physics_only_env_steps_per_s": args.steps / physics_s,
-        # Env time outside physics.step over time inside it, median of the repeats.
+        # Env CPU time outside physics.step over CPU time inside it, median of the repeats.
         "env_overhead_percent": statistics.median(overheads),
         "env_vs_replay_percent": 100.0 * (env_s - physics_s) / physics_s,
         "realtime_factor": args.steps * n_sub * dt / env_s,

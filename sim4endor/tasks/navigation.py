@@ -80,7 +80,11 @@ def lumen_excess(anatomy: Anatomy, point: FloatArray, proj: Projection | None = 
         proj: ``point``'s projection onto the centerline graph, if already known.
     """
     vessel = anatomy.vessel
-    if float(np.dot(point - vessel.inlet_position, vessel.inlet_direction)) < 0.0:
+    inlet = vessel.manifest.inlet
+    # Plain floats: three numbers, and this runs every control step.
+    offsets = zip(np.asarray(point).tolist(), inlet.position, inlet.direction, strict=True)
+    behind = sum((p - o) * d for p, o, d in offsets)
+    if behind < 0.0:
         return -math.inf
     graph = vessel.centerline
     proj = proj or graph.project(point)
@@ -224,7 +228,8 @@ class NavigationTask(base.Task):
 
     def _evaluate(self, physics: control.Physics, unstable: bool) -> StepEvaluation:
         term = self.config.termination
-        unstable = unstable or not physics.is_finite()
+        # No NaN check needed here: MuJoCo resets a non-finite state inside mj_step and warns,
+        # and dm_control turns the warning into the PhysicsError that calls mark_unstable.
         if unstable:
             distance = manifold = self._d_last
             force, excess = math.inf, math.inf

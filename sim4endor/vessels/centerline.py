@@ -8,6 +8,7 @@ lengths are in metres.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -69,10 +70,9 @@ class CenterlineGraph:
     # Derived in __post_init__: per-edge terms of the point-to-segment projection.
     _edge_start: FloatArray = field(init=False, repr=False)
     _edge_vector: FloatArray = field(init=False, repr=False)
-    _a_ab: FloatArray = field(init=False, repr=False)
-    _aa: FloatArray = field(init=False, repr=False)
+    _projector: FloatArray = field(init=False, repr=False)
     _abab: FloatArray = field(init=False, repr=False)
-    _inv_abab: FloatArray = field(init=False, repr=False)
+    _half_inv_abab: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         nodes = np.asarray(self.nodes, dtype=np.float64).reshape(-1, 3)
@@ -110,12 +110,19 @@ class CenterlineGraph:
         a = nodes[edges[:, 0]]
         ab = nodes[edges[:, 1]] - a
         abab = np.einsum("ij,ij->i", ab, ab)
+        # One (2E, 4) matrix maps the homogeneous point [p, 1] to 2(p - a)·ab and |a|^2 - 2 a·p
+        # for every edge at once.
+        projector = np.concatenate(
+            [
+                np.column_stack([2.0 * ab, -2.0 * np.einsum("ij,ij->i", a, ab)]),
+                np.column_stack([-2.0 * a, np.einsum("ij,ij->i", a, a)]),
+            ]
+        )
         object.__setattr__(self, "_edge_start", a)
         object.__setattr__(self, "_edge_vector", ab)
-        object.__setattr__(self, "_a_ab", np.einsum("ij,ij->i", a, ab))
-        object.__setattr__(self, "_aa", np.einsum("ij,ij->i", a, a))
+        object.__setattr__(self, "_projector", projector)
         object.__setattr__(self, "_abab", abab)
-        object.__setattr__(self, "_inv_abab", 1.0 / np.maximum(abab, 1e-30))
+        object.__setattr__(self, "_half_inv_abab", 0.5 / np.maximum(abab, 1e-30))
 
     # ----------------------------------------------------------------------------- geometry
     @property
@@ -196,15 +203,18 @@ class CenterlineGraph:
     def project(self, point: FloatArray) -> Projection:
         """Returns the closest point of the graph's edges to ``point``."""
         p = np.asarray(point, dtype=np.float64).reshape(3)
-        a, ab = self._edge_start, self._edge_vector
-        p_a, p_ab = a @ p, ab @ p
-        t = np.clip((p_ab - self._a_ab) * self._inv_abab, 0.0, 1.0)
-        # |p - (a + t ab)|^2 expanded so that no (E, 3) temporaries are needed.
-        d2 = p @ p - 2.0 * p_a + self._aa - 2.0 * t * (p_ab - self._a_ab) + t * t * self._abab
-        k = int(np.argmin(d2))
-        closest = a[k] + t[k] * ab[k]
+        # Few numpy calls (ufuncs, no Python-level wrappers such as np.clip): right after a
+        # physics step the CPU caches are cold and each call, not the arithmetic, is what costs.
+        both = self._projector @ np.array([*p.tolist(), 1.0])
+        edges = len(self._abab)
+        along2, base = both[:edges], both[edges:]
+        t = np.minimum(np.maximum(along2 * self._half_inv_abab, 0.0), 1.0)
+        # |p - (a + t ab)|^2 - |p|^2 = |a|^2 - 2 a·p - 2 t (p - a)·ab + t^2 |ab|^2
+        k = int((base + t * (t * self._abab - along2)).argmin())
+        fraction = float(t[k])
+        closest = self._edge_start[k] + fraction * self._edge_vector[k]
         return Projection(
-            edge=k, fraction=float(t[k]), point=closest, distance=float(np.linalg.norm(p - closest))
+            edge=k, fraction=fraction, point=closest, distance=math.dist(p, closest)
         )
 
     def radius_at_projection(self, proj: Projection) -> float:
