@@ -163,8 +163,9 @@ def test_cli_build_check_list(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     out = tmp_path / "vessels" / "clitube"
     status = main(["vessel", "build", str(mesh_path), "--name", "clitube", "--out", str(out),
                    "--units", "m", "--centerline", str(tmp_path / "centerline.json"),
-                   "--workers", "1", "--no-progress"])
+                   "--workers", "1", "--no-progress", "--decomposition", "hull"])
     assert status == 0 and "lumen open 1.0000" in capsys.readouterr().out
+    assert vessels.load(out).manifest.build["wall"]["use_coacd"] is False
     assert main(["vessel", "check", str(out), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["passed"] is True
     monkeypatch.setenv("SIM4ENDOR_VESSEL_PATH", str(tmp_path / "vessels"))

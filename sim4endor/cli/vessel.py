@@ -72,7 +72,11 @@ def run_build(args: argparse.Namespace) -> int:
         else:
             centerline = read_slicer_centerline(args.centerline, mesh_frame=args.mesh_frame)
     params = BuildParams(
-        wall=WallParams(thickness=args.wall_thickness * 1e-3, workers=args.workers),
+        wall=WallParams(
+            thickness=args.wall_thickness * 1e-3,
+            workers=args.workers,
+            use_coacd=args.decomposition == "coacd",
+        ),
         keep_largest=args.keep_largest,
     )
     license_text = args.license.read_text() if args.license else None
@@ -169,7 +173,15 @@ def add_build_parser(subparsers: Any) -> None:
         action="store_true",
         help="keep only the largest connected part of the mesh",
     )
-    parser.add_argument("--workers", type=int, default=2, help="processes for CoACD (2)")
+    parser.add_argument(
+        "--decomposition",
+        choices=("coacd", "hull"),
+        default="coacd",
+        help="wall pieces whose plain hull intrudes into the lumen: bisected, and also "
+        "decomposed by CoACD where that gives fewer hulls (coacd, default), or only bisected "
+        "(hull, about half the build time on large meshes)",
+    )
+    parser.add_argument("--workers", type=int, default=2, help="processes for the wall (2)")
     parser.add_argument("--license", type=Path, default=None, help="LICENSE file of the data")
     parser.add_argument("--source", default="", help="provenance line (default: mesh path)")
     parser.add_argument("--readme-text", default="", help="extra README paragraph")

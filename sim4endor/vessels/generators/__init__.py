@@ -15,7 +15,7 @@ Example:
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
@@ -28,9 +28,11 @@ from sim4endor.vessels.generators.phantoms import (
     simplified_phantom,
     vascular_phantom,
 )
+from sim4endor.vessels.walls import WallParams
 
 __all__ = [
     "GENERATORS",
+    "SHIPPED_PHANTOM_WALL",
     "CoronaryTreeConfig",
     "GeneratedAnatomy",
     "Generator",
@@ -52,21 +54,33 @@ class Generator:
         config_type: Its frozen config dataclass (default-constructible).
         generate: ``generate(config, seed) -> GeneratedAnatomy``.
         summary: One line for ``--help``.
+        wall: Wall decomposition its vessel folders are built with.
     """
 
     config_type: type
     generate: Callable[[Any, int], GeneratedAnatomy]
     summary: str
+    wall: WallParams = field(default_factory=WallParams)
+
+
+#: The shipped phantom folders (vessels/) were built with plain hulls and bisection and these
+#: (then default) CoACD settings, which the manifest records; a training job uses the folders
+#: and a test regenerates them byte for byte, so their generators stay pinned to it.
+SHIPPED_PHANTOM_WALL = WallParams(
+    use_coacd=False, coacd_threshold=0.05, coacd_mcts_iterations=20, coacd_resolution=300
+)
 
 
 GENERATORS: MappingProxyType[str, Generator] = MappingProxyType({
     "simplified_phantom": Generator(
         SimplifiedPhantomConfig, simplified_phantom,
         "paper Fig. 2: straight inlet, one bifurcation, End Points A and B",
+        SHIPPED_PHANTOM_WALL,
     ),
     "vascular_phantom": Generator(
         VascularPhantomConfig, vascular_phantom,
         "complex 3D phantom: 3 bifurcations, straight and tortuous segments, targets A and B",
+        SHIPPED_PHANTOM_WALL,
     ),
     "coronary_tree": Generator(
         CoronaryTreeConfig, coronary_tree,

@@ -112,7 +112,7 @@ def generate_vessel(generator: str, *, out_dir: Path, name: str | None = None, s
         progress: Show a progress bar while building the wall.
         cache: Reuse an identical earlier build.
     """
-    from sim4endor.vessels.build import build_vessel
+    from sim4endor.vessels.build import BuildParams, build_vessel
 
     if generator not in GENERATORS:
         raise GeneratorConfigError(
@@ -130,6 +130,7 @@ def generate_vessel(generator: str, *, out_dir: Path, name: str | None = None, s
         centerline=anatomy.centerline,
         inlet=anatomy.inlet_position,
         targets=anatomy.targets,
+        params=BuildParams(wall=spec.wall),
         source=command,
         readme_text=readme_text(anatomy, command, config),
         progress=progress,

@@ -1,0 +1,56 @@
+"""Wall pieces whose plain hull fills the lumen: bisection, and CoACD where it needs fewer hulls."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import trimesh
+
+from sim4endor.vessels.axis import sample_axis
+from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.walls import WallContext, WallParams, bin_faces, hulls_for_piece, intrusion
+
+R = 1.5e-3
+L = 20e-3
+
+
+def half_tube_piece(use_coacd: bool) -> WallContext:
+    """A 3-radii-long half of a tube wall: its convex hull cuts straight across the lumen."""
+    tube = trimesh.creation.cylinder(radius=R, height=L, sections=24).subdivide_to_size(1.2e-3)
+    n = 41
+    z = np.linspace(-L / 2, L / 2, n)
+    graph = CenterlineGraph(np.column_stack([np.zeros(n), np.zeros(n), z]), np.full(n, R),
+                            np.column_stack([np.arange(n - 1), np.arange(1, n)]))
+    params = WallParams(sectors=2, arc_bin=3.0, workers=1, use_coacd=use_coacd)
+    pieces, radius, u, angle = bin_faces(tube, sample_axis(graph), params)
+    ctx = WallContext(np.asarray(tube.vertices), np.asarray(tube.faces, dtype=np.int64),
+                      np.asarray(tube.vertex_normals), np.asarray(tube.face_normals), radius, u,
+                      angle, params)
+    return ctx.subset(max(pieces[3:-3], key=len))
+
+
+def max_intrusion(ctx: WallContext, hulls: list) -> float:
+    """Largest intrusion of any hull into the lumen at the piece's vertices, in radii."""
+    verts = np.unique(ctx.faces)
+    points, inward = ctx.vertices[verts], -ctx.vertex_normals[verts]
+    return max(float(intrusion(h, points, inward, 1e-3 * R).max()) for h in hulls) / R
+
+
+def test_coacd_is_taken_where_it_needs_fewer_hulls_than_bisection() -> None:
+    bisected = half_tube_piece(use_coacd=False)
+    faces = np.arange(len(bisected.faces))
+    split = hulls_for_piece(bisected, faces)
+    with_coacd = dataclasses.replace(bisected, params=dataclasses.replace(bisected.params,
+                                                                          use_coacd=True))
+    parts = hulls_for_piece(with_coacd, faces)
+    assert 2 <= len(parts) < len(split)
+    for hulls in (split, parts):
+        assert max_intrusion(bisected, hulls) <= bisected.params.intrusion_tolerance
+    # Together the hulls still cover the wall: points in mid-wall lie inside some hull.
+    probes = bisected.vertices + 0.5 * bisected.params.thickness * bisected.vertex_normals
+    inside = np.zeros(len(probes), dtype=bool)
+    for hull in parts:
+        inside |= (probes @ hull.equations[:, :3].T + hull.equations[:, 3]).max(axis=1) <= 1e-7
+    assert inside.mean() > 0.99
+    assert len(hulls_for_piece(with_coacd, faces)) == len(parts)  # seeded: deterministic
