@@ -14,11 +14,15 @@ diagonal), so the wall is cut into small pieces first:
    the piece through the hull's half-spaces), the hull is used as is. Most tube pieces take this
    path, which is why a ~100k-face tree builds in a minute or two;
 4. the other pieces (bifurcations, tight bends) are bisected along their longer extent (arc or
-   angle) and the halves are treated again, down to single faces, whose prisms are convex.
-   With ``use_coacd=True`` a failing piece first goes to CoACD (``pca=True``). That is off by
-   default because it was measured far too slow here: CoACD's manifold check flags these piece
-   solids and falls back to remeshing, 72-118 s per piece on a 100k-face coronary tree, versus
-   6.8 s for all 1402 pieces of that tree with bisection (1755 hulls).
+   angle) and the halves are treated again, down to single faces, whose prisms are convex;
+5. with ``use_coacd`` (the default) a piece whose bisection needs three hulls or more also goes
+   to CoACD (``pca=True``, preprocessing off since the piece solid is closed, a shallow search,
+   ``coacd_threshold`` 0.2 of the piece's bounding-box diagonal), and CoACD's hulls replace the
+   bisection's when they keep the lumen open (step 3's test) and are fewer. Measured: CoACD at
+   threshold 0.05 with its default search cut a 48-face phantom piece into 80-113 hulls in
+   10-20 s; at 0.2 with the shallow search into 2-3 hulls in 0.1-0.2 s. It saves 5-10 % of the
+   phantoms' hulls and none on a ~100k-face coronary tree, where it doubles the wall time
+   (docs/vessels.md has the figures).
 
 Faces of the end cap at the inlet get no wall, so a wire can enter a capped mesh.
 """
@@ -54,12 +58,13 @@ class WallParams:
         sectors: Angular sectors around the axis.
         intrusion_tolerance: Largest accepted intrusion of a hull into the lumen, in local
             lumen radii.
-        use_coacd: Decompose non-convex pieces with CoACD before bisecting them (slow; off).
+        use_coacd: Also decompose pieces that bisection splits into three or more hulls with
+            CoACD, and keep its hulls where they are fewer.
         coacd_threshold: CoACD concavity threshold (relative to the piece's bbox diagonal).
         coacd_mcts_iterations: CoACD search iterations (fewer is faster).
         coacd_resolution: CoACD sampling resolution.
         max_split_depth: Bisection depth limit per piece.
-        workers: Processes for CoACD (pieces are independent).
+        workers: Processes for the pieces (they are independent).
     """
 
     thickness: float = 0.8e-3
