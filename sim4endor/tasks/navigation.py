@@ -319,10 +319,11 @@ class NavigationTask(base.Task):
         return obs
 
     def _observe(self, name: str, physics: control.Physics) -> np.ndarray:
+        # The physics accessors already return fresh float64 arrays.
         if name == "tip_position":
-            return np.array(physics.tip_position(), dtype=np.float64)
+            return physics.tip_position()
         if name == "tip_velocity":
-            return np.array(physics.tip_velocity(), dtype=np.float64)
+            return physics.tip_velocity()
         if name == "target_position":
             return self.target_position
         if name == "wire_shape":
