@@ -44,6 +44,7 @@ class _Indices:
     wire_bodies: NDArray[np.int64]
     tip_site: int
     geom_class: NDArray[np.int8]  # 1: wire segment, 2: vessel wall, 0: anything else
+    wall_sensor: int  # sensordata address of the wall contact sensor, -1 without a vessel
     actuators: tuple[int, int]  # insertion, rotation
     joint_qpos: tuple[int, int]  # qpos addresses of the insertion and rotation joints
 
@@ -55,6 +56,12 @@ def _geom_classes(
     wire = np.isin(model.geom_bodyid, wire_bodies) & (model.geom_contype > 0)
     wall = (model.geom_contype & 2).astype(bool) & (model.geom_bodyid != sheath)
     return np.where(wire, 1, np.where(wall, 2, 0)).astype(np.int8)
+
+
+def _sensor_address(model: mujoco.MjModel, name: str) -> int:
+    """Returns a sensor's first ``sensordata`` index, or -1 when the model has no such sensor."""
+    sensor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, name)
+    return int(model.sensor_adr[sensor]) if sensor >= 0 else -1
 
 
 class GuidewirePhysics(dm_mujoco.Physics):
@@ -103,6 +110,7 @@ class GuidewirePhysics(dm_mujoco.Physics):
             wire_bodies=bodies,
             tip_site=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE),
             geom_class=_geom_classes(model, bodies, sheath),
+            wall_sensor=_sensor_address(model, names.WALL_CONTACT_SENSOR),
             actuators=(
                 mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, names.INSERTION_ACTUATOR),
                 mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, names.ROTATION_ACTUATOR),
@@ -173,6 +181,14 @@ class GuidewirePhysics(dm_mujoco.Physics):
 
     def wall_contact_force(self) -> float:
         """Total normal force of all wire–vessel-wall contacts (N), the task's safety signal."""
+        address = self._indices().wall_sensor
+        if address >= 0 and not self.legacy_step:
+            # The wall contact sensor, filled by mj_step for the same contacts and forces that
+            # wall_contact_forces() reads: slots of [count, normal, tangent, tangent].
+            slots = self.data.ptr.sensordata[address : address + 4 * names.WALL_CONTACT_SLOTS]
+            found = int(slots[0])
+            if found <= names.WALL_CONTACT_SLOTS:
+                return float(slots[1 : 4 * found : 4].sum())
         return float(self.wall_contact_forces().sum())
 
     # -------------------------------------------------------------------------- driving
@@ -204,10 +220,14 @@ class GuidewirePhysics(dm_mujoco.Physics):
 
         For episode starts only: it sets the joint positions directly, which is safe for the
         small offsets of an initial state but would teleport a wire that is in contact.
+        Positions (:meth:`tip_position`, :meth:`wire_points`) are current on return.
         """
         self.set_driver_targets(insertion, rotation)
         for address, value in zip(self._indices().joint_qpos, self.driver_targets(), strict=True):
             self.data.qpos[address] = value
+        # Body and site positions follow at once, so the tip can be read inside dm_control's
+        # reset_context (whose forward pass only runs when the block exits).
+        mujoco.mj_kinematics(self.model.ptr, self.data.ptr)
 
     def max_speeds(self) -> tuple[float, float]:
         """The driver's speed limits (m/s, rad/s)."""

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from guidewire_helpers import write_tube_vessel
 
+from sim4endor.models import constants as names
 from sim4endor.models import validation
 from sim4endor.models.scene import SceneConfig
 from sim4endor.physics import GuidewirePhysics
@@ -127,3 +128,15 @@ def test_vectorised_wall_forces_match_mujoco_contact_force(tube: Vessel) -> None
             mujoco.mj_contactForce(model, data, i, wrench)
             expected.append(wrench[0])
     np.testing.assert_allclose(np.sort(forces), np.sort(expected), rtol=1e-9, atol=1e-12)
+
+
+def test_wall_sensor_total_matches_the_contact_list(tube: Vessel) -> None:
+    physics = GuidewirePhysics.from_vessel(tube)
+    _drive(physics, 0.07, 0.3, 3.0)
+    forces = physics.wall_contact_forces()
+    assert len(forces) > 0
+    assert physics.wall_contact_force() == pytest.approx(forces.sum(), rel=1e-12)
+    # More contacts than the sensor has slots: the total comes from the contact list.
+    address = physics._indices().wall_sensor
+    physics.data.ptr.sensordata[address] = names.WALL_CONTACT_SLOTS + 1
+    assert physics.wall_contact_force() == pytest.approx(forces.sum(), rel=1e-12)

@@ -176,3 +176,11 @@ def test_lumen_excess_is_negative_inside_and_positive_outside() -> None:
     assert lumen_excess(anatomy, mid + 3 * radius * normal / np.linalg.norm(normal)) > 0
     behind = vessel.inlet_position - 0.01 * vessel.inlet_direction
     assert lumen_excess(anatomy, behind) == -math.inf
+
+
+def test_reset_distance_is_measured_at_the_placed_start() -> None:
+    env = suite.load("simplified_phantom", "task_a", {"random": 3})
+    env.reset()
+    task = env.task
+    # The first step's distance reward compares with this, so it must be the start pose's.
+    assert task._d_last == task._manifold()(env.physics.tip_position())

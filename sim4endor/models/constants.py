@@ -34,6 +34,11 @@ SHEATH_CLASS = "sheath"
 #: Prefix given to every element of the attached vessel MJCF.
 VESSEL_PREFIX = "vessel/"
 
+#: Contact sensor reporting the wire's contacts with the vessel wall (count and forces).
+WALL_CONTACT_SENSOR = "wall_contact"
+#: Contacts the wall sensor reports one by one; more at once fall back to Python.
+WALL_CONTACT_SLOTS = 32
+
 
 def wire_body(index: int) -> str:
     """Returns the name of the wire's ``index``-th body (0 = proximal, welded to the driver)."""

@@ -121,6 +121,26 @@ def _attach_vessel(spec: mujoco.MjSpec, vessel: Vessel) -> None:
     spec.attach(child, prefix=names.VESSEL_PREFIX, frame=spec.worldbody.add_frame())
 
 
+def _add_wall_contact_sensor(spec: mujoco.MjSpec) -> None:
+    """Adds a contact sensor for every contact of the wire with a vessel-wall hull.
+
+    The hulls are geoms of the world body (the sheath has its own body, so it is not
+    included). MuJoCo fills the sensor inside ``mj_step``, so reading the wall force is one
+    slice instead of a pass over the contact list in Python (see
+    :meth:`sim4endor.physics.GuidewirePhysics.wall_contact_force`).
+    """
+    sensor = spec.add_sensor()
+    sensor.name = names.WALL_CONTACT_SENSOR
+    sensor.type = mujoco.mjtSensor.mjSENS_CONTACT
+    sensor.objtype = mujoco.mjtObj.mjOBJ_XBODY  # the wire's whole subtree
+    sensor.objname = names.wire_body(0)
+    sensor.reftype = mujoco.mjtObj.mjOBJ_BODY
+    sensor.refname = "world"
+    # data="found force" (bits 0 and 1), reduce="none", num=slots: per slot
+    # [number of matching contacts, normal force, two tangential forces].
+    sensor.intprm = [0b11, 0, names.WALL_CONTACT_SLOTS]
+
+
 def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujoco.MjSpec:
     """Returns the uncompiled scene spec.
 
@@ -158,6 +178,8 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
     add_sheath(spec, start - 0.002 * direction, quat, back + 0.002 + driver.sheath_overlap, driver)
     carriage = add_driver(spec, start, quat, driver)
     add_guidewire(spec, carriage, wire)
+    if vessel is not None:
+        _add_wall_contact_sensor(spec)
     spec.stat.center = list(inlet + 0.5 * driver.max_insertion * direction)
     spec.stat.extent = max(0.05, driver.max_insertion)
     spec.stat.meansize = 0.002
