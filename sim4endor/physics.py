@@ -44,7 +44,9 @@ class _Indices:
     wire_bodies: NDArray[np.int64]
     tip_site: int
     geom_class: NDArray[np.int8]  # 1: wire segment, 2: vessel wall, 0: anything else
-    wall_sensor: int  # sensordata address of the wall contact sensor, -1 without a vessel
+    wall_sensor: int  # sensordata address of the whole wire's wall contact sensor
+    tip_sensor: int  # sensordata address of the tip section's wall contact sensor
+    first_tip_body: int  # body id of the first segment of the pre-bent tip
     actuators: tuple[int, int]  # insertion, rotation
     joint_qpos: tuple[int, int]  # qpos addresses of the insertion and rotation joints
 
@@ -56,12 +58,6 @@ def _geom_classes(
     wire = np.isin(model.geom_bodyid, wire_bodies) & (model.geom_contype > 0)
     wall = (model.geom_contype & 2).astype(bool) & (model.geom_bodyid != sheath)
     return np.where(wire, 1, np.where(wall, 2, 0)).astype(np.int8)
-
-
-def _sensor_address(model: mujoco.MjModel, name: str) -> int:
-    """Returns a sensor's first ``sensordata`` index, or -1 when the model has no such sensor."""
-    sensor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, name)
-    return int(model.sensor_adr[sensor]) if sensor >= 0 else -1
 
 
 class GuidewirePhysics(dm_mujoco.Physics):
@@ -105,12 +101,17 @@ class GuidewirePhysics(dm_mujoco.Physics):
             count += 1
         bodies = np.arange(first, first + count)
         sheath = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.SHEATH_BODY)
+        sensor = mujoco.mjtObj.mjOBJ_SENSOR
+        wall_sensor = mujoco.mj_name2id(model, sensor, names.WALL_CONTACT_SENSOR)
+        tip_sensor = mujoco.mj_name2id(model, sensor, names.TIP_CONTACT_SENSOR)
         indices = _Indices(
             model=model,
             wire_bodies=bodies,
             tip_site=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE),
             geom_class=_geom_classes(model, bodies, sheath),
-            wall_sensor=_sensor_address(model, names.WALL_CONTACT_SENSOR),
+            wall_sensor=int(model.sensor_adr[wall_sensor]),
+            tip_sensor=int(model.sensor_adr[tip_sensor]),
+            first_tip_body=int(model.sensor_objid[tip_sensor]),
             actuators=(
                 mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, names.INSERTION_ACTUATOR),
                 mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, names.ROTATION_ACTUATOR),
@@ -155,9 +156,13 @@ class GuidewirePhysics(dm_mujoco.Physics):
     # ------------------------------------------------------------------------- contacts
     def wall_contact_forces(self) -> FloatArray:
         """Normal force (N) of every wire–vessel-wall contact now active (sheath excluded)."""
+        return self._wall_contacts()[0]
+
+    def _wall_contacts(self) -> tuple[FloatArray, NDArray[np.int32]]:
+        """Returns the normal force (N) and the wire body id of every wire–wall contact."""
         data, model = self.data.ptr, self.model.ptr
         if data.ncon == 0:
-            return np.zeros(0)
+            return np.zeros(0), np.zeros(0, dtype=np.int32)
         if self.legacy_step:
             # mj_step2 + mj_step1 leave efc_force from the previous state's contacts.
             mujoco.mj_fwdActuation(model, data)
@@ -166,30 +171,48 @@ class GuidewirePhysics(dm_mujoco.Physics):
         contacts = data.contact
         # Geom classes 1 (wire) and 2 (wall): a wire–wall pair is the only product equal to 2.
         geom_class = self._indices().geom_class
-        pair = geom_class[contacts.geom1] * geom_class[contacts.geom2]
-        hits = np.flatnonzero(pair == 2)
+        geom1, geom2 = contacts.geom1, contacts.geom2
+        hits = np.flatnonzero(geom_class[geom1] * geom_class[geom2] == 2)
         address = contacts.efc_address[hits]
         hits, address = hits[address >= 0], address[address >= 0]
+        wire_geom = np.where(geom_class[geom1[hits]] == 1, geom1[hits], geom2[hits])
+        bodies = model.geom_bodyid[wire_geom]
         if model.opt.cone != mujoco.mjtCone.mjCONE_PYRAMIDAL:
-            return data.efc_force[address].copy()
+            return data.efc_force[address].copy(), bodies
         # A pyramidal contact's normal force is the sum of its 2(dim-1) consecutive edge forces
         # (as in mj_contactForce); a frictionless contact has one row. Vectorised through a
         # cumulative sum over the constraint rows.
         rows = np.maximum(2 * (contacts.dim[hits] - 1), 1)
         cumulative = np.concatenate(([0.0], np.cumsum(data.efc_force)))
-        return cumulative[address + rows] - cumulative[address]
+        return cumulative[address + rows] - cumulative[address], bodies
 
     def wall_contact_force(self) -> float:
-        """Total normal force of all wire–vessel-wall contacts (N), the task's safety signal."""
-        address = self._indices().wall_sensor
-        if address >= 0 and not self.legacy_step:
-            # The wall contact sensor, filled by mj_step for the same contacts and forces that
-            # wall_contact_forces() reads: slots of [count, normal, tangent, tangent].
-            slots = self.data.ptr.sensordata[address : address + 4 * names.WALL_CONTACT_SLOTS]
+        """Total normal force of all wire–vessel-wall contacts (N)."""
+        indices = self._indices()
+        return self._contact_sensor_total(indices.wall_sensor, int(indices.wire_bodies[0]))
+
+    def tip_contact_force(self) -> float:
+        """Normal force of the pre-bent tip's segments on the vessel wall (N).
+
+        The task's safety signal: the tip is what can perforate a vessel, while the shaft of a
+        wire lying in tortuous vessels presses on every bend (measured on the vascular
+        phantom: over 2.5 N in total on the shaft for about 0.4 N on the tip).
+        """
+        indices = self._indices()
+        return self._contact_sensor_total(indices.tip_sensor, indices.first_tip_body)
+
+    def _contact_sensor_total(self, address: int, first_body: int) -> float:
+        """Sums a wall contact sensor: the wall force on the wire from ``first_body`` on."""
+        if not self.legacy_step:
+            # Filled by mj_step for the same contacts and forces that _wall_contacts() reads:
+            # slots of [count, normal, tangent, tangent].
+            slots = self.data.ptr.sensordata[address : address + 4 * names.CONTACT_SENSOR_SLOTS]
             found = int(slots[0])
-            if found <= names.WALL_CONTACT_SLOTS:
+            if found <= names.CONTACT_SENSOR_SLOTS:
                 return float(slots[1 : 4 * found : 4].sum())
-        return float(self.wall_contact_forces().sum())
+        # Legacy stepping (the sensor describes the previous state) or more contacts than slots.
+        forces, bodies = self._wall_contacts()
+        return float(forces[bodies >= first_body].sum())
 
     # -------------------------------------------------------------------------- driving
     def driver_targets(self) -> tuple[float, float]:

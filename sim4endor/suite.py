@@ -36,7 +36,7 @@ per control step; defaults 1.5 mm and 9° at 20 Hz (``control_timestep`` 0.05 s)
 clipped; NaN/inf raise :class:`sim4endor.tasks.InvalidActionError`.
 
 **Reward** (paper): ``R_dist = (D_last − D_current)/100`` with D in mm, ``+100`` when
-D <= 1 mm (success, terminal), ``−100`` on failure (terminal: wall force > 1 N, tip > 0.5 mm
+D <= 1 mm (success, terminal), ``−100`` on failure (terminal: tip force > 1 N, tip > 0.5 mm
 outside the lumen, commanded insertion beyond the driver's travel (fitted to the deepest
 target + 10 mm), |rotation| > 10 turns, instability). D is the manifold
 distance; ``task_kwargs={"reward": "euclidean"}`` gives the Euclidean baseline. Episodes are

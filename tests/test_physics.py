@@ -130,13 +130,17 @@ def test_vectorised_wall_forces_match_mujoco_contact_force(tube: Vessel) -> None
     np.testing.assert_allclose(np.sort(forces), np.sort(expected), rtol=1e-9, atol=1e-12)
 
 
-def test_wall_sensor_total_matches_the_contact_list(tube: Vessel) -> None:
+def test_contact_sensors_match_the_contact_list(tube: Vessel) -> None:
     physics = GuidewirePhysics.from_vessel(tube)
     _drive(physics, 0.07, 0.3, 3.0)
-    forces = physics.wall_contact_forces()
-    assert len(forces) > 0
+    forces, bodies = physics._wall_contacts()
+    tip = forces[bodies >= physics._indices().first_tip_body].sum()
+    assert len(forces) > 0 and tip > 0.0
     assert physics.wall_contact_force() == pytest.approx(forces.sum(), rel=1e-12)
-    # More contacts than the sensor has slots: the total comes from the contact list.
-    address = physics._indices().wall_sensor
-    physics.data.ptr.sensordata[address] = names.WALL_CONTACT_SLOTS + 1
+    assert physics.tip_contact_force() == pytest.approx(tip, rel=1e-12)
+    # More contacts than a sensor has slots: the totals come from the contact list.
+    indices = physics._indices()
+    for address in (indices.wall_sensor, indices.tip_sensor):
+        physics.data.ptr.sensordata[address] = names.CONTACT_SENSOR_SLOTS + 1
     assert physics.wall_contact_force() == pytest.approx(forces.sum(), rel=1e-12)
+    assert physics.tip_contact_force() == pytest.approx(tip, rel=1e-12)

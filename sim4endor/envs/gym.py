@@ -19,6 +19,7 @@ NUMERIC_INFO_KEYS: tuple[str, ...] = (
     "distance",
     "manifold_distance",
     "wall_force",
+    "tip_force",
     "lumen_excess",
     "is_success",
     "insertion_command",
@@ -71,9 +72,10 @@ class NavigationEnv(gymnasium.Env[Any, np.ndarray]):
 
     D is the manifold (geodesic) distance along the centerline graph, or Euclidean with
     ``task_kwargs={"reward": "euclidean"}``. Failure states (``info["failure"]``):
-    ``wall_force`` (> 1 N), ``outside_lumen`` (tip > 0.5 mm outside), ``insertion_limit``,
-    ``rotation_limit``, ``instability``. ``info`` also holds ``distance`` and
-    ``manifold_distance`` (m), ``wall_force`` (N), ``lumen_excess`` (m), ``is_success``.
+    ``tip_force`` (tip section on the wall > 1 N), ``outside_lumen`` (tip > 0.5 mm outside),
+    ``insertion_limit``, ``rotation_limit``, ``instability``. ``info`` also holds ``distance`` and
+    ``manifold_distance`` (m), ``wall_force`` and ``tip_force`` (N), ``lumen_excess`` (m),
+    ``is_success``.
 
     **Episode end**: ``terminated`` on success or failure; ``truncated`` after 20 s of
     simulated time (400 steps).

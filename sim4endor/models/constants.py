@@ -34,10 +34,12 @@ SHEATH_CLASS = "sheath"
 #: Prefix given to every element of the attached vessel MJCF.
 VESSEL_PREFIX = "vessel/"
 
-#: Contact sensor reporting the wire's contacts with the vessel wall (count and forces).
+#: Contact sensor reporting the whole wire's contacts with the vessel wall (count and forces).
 WALL_CONTACT_SENSOR = "wall_contact"
-#: Contacts the wall sensor reports one by one; more at once fall back to Python.
-WALL_CONTACT_SLOTS = 32
+#: Contact sensor reporting the contacts of the pre-bent tip's segments with the vessel wall.
+TIP_CONTACT_SENSOR = "tip_contact"
+#: Contacts a contact sensor reports one by one; more at once fall back to Python.
+CONTACT_SENSOR_SLOTS = 32
 
 
 def wire_body(index: int) -> str:

@@ -121,24 +121,24 @@ def _attach_vessel(spec: mujoco.MjSpec, vessel: Vessel) -> None:
     spec.attach(child, prefix=names.VESSEL_PREFIX, frame=spec.worldbody.add_frame())
 
 
-def _add_wall_contact_sensor(spec: mujoco.MjSpec) -> None:
-    """Adds a contact sensor for every contact of the wire with a vessel-wall hull.
+def _add_wall_contact_sensor(spec: mujoco.MjSpec, name: str, wire_body: str) -> None:
+    """Adds a sensor for the contacts of ``wire_body``'s subtree with vessel-wall hulls.
 
     The hulls are geoms of the world body (the sheath has its own body, so it is not
-    included). MuJoCo fills the sensor inside ``mj_step``, so reading the wall force is one
+    included). MuJoCo fills the sensor inside ``mj_step``, so reading a wall force is one
     slice instead of a pass over the contact list in Python (see
     :meth:`sim4endor.physics.GuidewirePhysics.wall_contact_force`).
     """
     sensor = spec.add_sensor()
-    sensor.name = names.WALL_CONTACT_SENSOR
+    sensor.name = name
     sensor.type = mujoco.mjtSensor.mjSENS_CONTACT
-    sensor.objtype = mujoco.mjtObj.mjOBJ_XBODY  # the wire's whole subtree
-    sensor.objname = names.wire_body(0)
+    sensor.objtype = mujoco.mjtObj.mjOBJ_XBODY  # the body's whole subtree
+    sensor.objname = wire_body
     sensor.reftype = mujoco.mjtObj.mjOBJ_BODY
     sensor.refname = "world"
     # data="found force" (bits 0 and 1), reduce="none", num=slots: per slot
     # [number of matching contacts, normal force, two tangential forces].
-    sensor.intprm = [0b11, 0, names.WALL_CONTACT_SLOTS]
+    sensor.intprm = [0b11, 0, names.CONTACT_SENSOR_SLOTS]
 
 
 def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujoco.MjSpec:
@@ -178,8 +178,9 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
     add_sheath(spec, start - 0.002 * direction, quat, back + 0.002 + driver.sheath_overlap, driver)
     carriage = add_driver(spec, start, quat, driver)
     add_guidewire(spec, carriage, wire)
-    if vessel is not None:
-        _add_wall_contact_sensor(spec)
+    _add_wall_contact_sensor(spec, names.WALL_CONTACT_SENSOR, names.wire_body(0))
+    first_tip_body = wire.num_segments - wire.tip_segments
+    _add_wall_contact_sensor(spec, names.TIP_CONTACT_SENSOR, names.wire_body(first_tip_body))
     spec.stat.center = list(inlet + 0.5 * driver.max_insertion * direction)
     spec.stat.extent = max(0.05, driver.max_insertion)
     spec.stat.meansize = 0.002

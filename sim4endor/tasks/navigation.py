@@ -33,7 +33,7 @@ FloatArray = NDArray[np.float64]
 #: Failure reasons, in the order they are checked.
 FAILURES: tuple[str, ...] = (
     "instability",
-    "wall_force",
+    "tip_force",
     "outside_lumen",
     "insertion_limit",
     "rotation_limit",
@@ -51,7 +51,8 @@ class StepEvaluation:
     Attributes:
         distance: Reward-metric distance from the tip to the target (m).
         manifold_distance: Geodesic distance along the centerline graph (m), for reporting.
-        wall_force: Total normal wire–wall contact force (N).
+        wall_force: Total normal wire–wall contact force (N), for reporting.
+        tip_force: Normal force of the tip section on the wall (N), the safety signal.
         lumen_excess: Distance of the tip outside the lumen (m; <= 0 inside).
         success: Whether the tip reached the target.
         failure: Failure reason (one of :data:`FAILURES`) or ``""``.
@@ -61,6 +62,7 @@ class StepEvaluation:
     distance: float
     manifold_distance: float
     wall_force: float
+    tip_force: float
     lumen_excess: float
     success: bool
     failure: str
@@ -232,7 +234,7 @@ class NavigationTask(base.Task):
         # and dm_control turns the warning into the PhysicsError that calls mark_unstable.
         if unstable:
             distance = manifold = self._d_last
-            force, excess = math.inf, math.inf
+            force, tip_force, excess = math.inf, math.inf, math.inf
         else:
             tip = physics.tip_position()
             to_target = self._manifold()
@@ -243,11 +245,12 @@ class NavigationTask(base.Task):
                 if self.config.reward.metric == "manifold"
                 else self._distance(self.config.reward.metric)(tip)
             )
-            force = float(physics.wall_contact_force())
+            force = physics.wall_contact_force()
+            tip_force = physics.tip_contact_force()
             excess = lumen_excess(self._anatomy, tip, proj)
         checks = {
             "instability": unstable,
-            "wall_force": force > term.max_wall_force,
+            "tip_force": tip_force > term.max_tip_force,
             "outside_lumen": excess > term.lumen_margin,
             "insertion_limit": self._insertion > self._max_insertion,
             "rotation_limit": abs(self._rotation) > self._max_rotation,
@@ -258,7 +261,9 @@ class NavigationTask(base.Task):
             self.config.reward, self._d_last, distance, success=success, failed=bool(failure)
         )
         self._d_last = distance
-        return StepEvaluation(distance, manifold, force, excess, success, failure, terms)
+        return StepEvaluation(
+            distance, manifold, force, tip_force, excess, success, failure, terms
+        )
 
     def get_reward(self, physics: control.Physics) -> float:
         """Returns the sum of this step's reward terms."""
@@ -284,6 +289,7 @@ class NavigationTask(base.Task):
             "distance": ev.distance,
             "manifold_distance": ev.manifold_distance,
             "wall_force": ev.wall_force,
+            "tip_force": ev.tip_force,
             "lumen_excess": ev.lumen_excess,
             "is_success": ev.success,
             "failure": ev.failure,
