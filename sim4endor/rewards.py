@@ -149,14 +149,7 @@ class ManifoldDistance:
 
     def at(self, proj: Projection) -> float:
         """Returns the manifold distance (m) from a point already projected onto the graph."""
-        i, j = self.graph.edges[proj.edge]
-        weight = float(self._edge_weights[proj.edge])
-        return float(
-            min(
-                proj.fraction * weight + self.node_distances[i],
-                (1.0 - proj.fraction) * weight + self.node_distances[j],
-            )
-        )
+        return self.graph.distance_at(proj, self.node_distances, self._edge_weights)
 
 
 def make_distance(

@@ -25,10 +25,7 @@ def branch_chains(graph: CenterlineGraph) -> list[list[int]]:
     Every edge belongs to exactly one chain. A cycle without junctions becomes one chain that
     starts and ends at the same node.
     """
-    neighbours: list[list[int]] = [[] for _ in range(graph.num_nodes)]
-    for i, j in graph.edges:
-        neighbours[i].append(int(j))
-        neighbours[j].append(int(i))
+    neighbours = graph.neighbours()
     degree = np.array([len(n) for n in neighbours])
     used: set[tuple[int, int]] = set()
     chains: list[list[int]] = []

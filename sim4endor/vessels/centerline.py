@@ -151,14 +151,18 @@ class CenterlineGraph:
         """Returns the number of connected components (1 for a proper vessel tree)."""
         return int(connected_components(self._adjacency(self.edge_lengths()), directed=False)[0])
 
-    def node_curvature(self) -> FloatArray:
-        """Returns the discrete curvature (1/m) at every node; 0 at ends and junctions."""
-        curvature = np.zeros(self.num_nodes)
+    def neighbours(self) -> list[list[int]]:
+        """Returns, for every node, the nodes it shares an edge with (in edge order)."""
         neighbours: list[list[int]] = [[] for _ in range(self.num_nodes)]
         for i, j in self.edges:
             neighbours[i].append(int(j))
             neighbours[j].append(int(i))
-        for k, adjacent in enumerate(neighbours):
+        return neighbours
+
+    def node_curvature(self) -> FloatArray:
+        """Returns the discrete curvature (1/m) at every node; 0 at ends and junctions."""
+        curvature = np.zeros(self.num_nodes)
+        for k, adjacent in enumerate(self.neighbours()):
             if len(adjacent) != 2:
                 continue
             a, b, c = self.nodes[adjacent[0]], self.nodes[k], self.nodes[adjacent[1]]
@@ -232,13 +236,31 @@ class CenterlineGraph:
             point: Query point (m), e.g. the wire tip.
             node_distances: Output of :meth:`geodesic_from` for the target node.
         """
-        proj = self.project(point)
+        return self.distance_at(self.project(point), node_distances)
+
+    def distance_at(
+        self,
+        proj: Projection,
+        node_distances: FloatArray,
+        edge_weights: FloatArray | None = None,
+    ) -> float:
+        """Returns the manifold distance from a point already projected onto the graph.
+
+        Args:
+            proj: The point's projection (:meth:`project`).
+            node_distances: Output of :meth:`geodesic_from` for the target node.
+            edge_weights: The weights ``node_distances`` was computed with
+                (:meth:`edge_weights`); None means arc length.
+        """
         i, j = self.edges[proj.edge]
-        length = float(np.linalg.norm(self.nodes[j] - self.nodes[i]))
+        if edge_weights is None:
+            weight = float(np.linalg.norm(self.nodes[j] - self.nodes[i]))
+        else:
+            weight = float(edge_weights[proj.edge])
         return float(
             min(
-                proj.fraction * length + node_distances[i],
-                (1.0 - proj.fraction) * length + node_distances[j],
+                proj.fraction * weight + node_distances[i],
+                (1.0 - proj.fraction) * weight + node_distances[j],
             )
         )
 

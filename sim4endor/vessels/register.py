@@ -163,18 +163,10 @@ def signed_distance(mesh: trimesh.Trimesh, points: FloatArray) -> FloatArray:
     return np.where(outward > 0, -distance, distance)
 
 
-def _neighbours(graph: CenterlineGraph) -> list[list[int]]:
-    neighbours: list[list[int]] = [[] for _ in range(graph.num_nodes)]
-    for i, j in graph.edges:
-        neighbours[i].append(int(j))
-        neighbours[j].append(int(i))
-    return neighbours
-
-
 def _frames(graph: CenterlineGraph) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Returns each node's (first, second, tangent) axes (N, 3, 3) and the junction mask."""
     tangent = np.zeros((graph.num_nodes, 3))
-    for node, adjacent in enumerate(_neighbours(graph)):
+    for node, adjacent in enumerate(graph.neighbours()):
         if len(adjacent) == 1:
             tangent[node] = graph.nodes[adjacent[0]] - graph.nodes[node]
         elif len(adjacent) == 2:
