@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -54,3 +59,27 @@ def test_coacd_is_taken_where_it_needs_fewer_hulls_than_bisection() -> None:
         inside |= (probes @ hull.equations[:, :3].T + hull.equations[:, 3]).max(axis=1) <= 1e-7
     assert inside.mean() > 0.99
     assert len(hulls_for_piece(with_coacd, faces)) == len(parts)  # seeded: deterministic
+
+
+def test_parallel_build_after_coacd_in_this_process_does_not_hang() -> None:
+    # CoACD runs OpenMP; a worker forked after the parent's OpenMP pool started hangs in its
+    # first parallel region (a notebook building two vessels did). Workers must be spawned.
+    script = textwrap.dedent(
+        """
+        import dataclasses
+        import numpy as np
+        from test_vessel_walls import half_tube_piece
+        from sim4endor.vessels.walls import build_hulls, hulls_for_piece
+
+        ctx = half_tube_piece(use_coacd=True)
+        faces = np.arange(len(ctx.faces))
+        serial = hulls_for_piece(ctx, faces)
+        parallel = dataclasses.replace(ctx, params=dataclasses.replace(ctx.params, workers=2))
+        hulls = build_hulls(parallel, [faces] * 4)
+        assert len(hulls) == 4 * len(serial), (len(hulls), len(serial))
+        """
+    )
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parent)}
+    result = subprocess.run([sys.executable, "-c", script], env=env, timeout=120,
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr

@@ -30,6 +30,7 @@ Faces of the end cap at the inlet get no wall, so a wire can enter a capped mesh
 from __future__ import annotations
 
 import logging
+import multiprocessing
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -64,7 +65,8 @@ class WallParams:
         coacd_mcts_iterations: CoACD search iterations (fewer is faster).
         coacd_resolution: CoACD sampling resolution.
         max_split_depth: Bisection depth limit per piece.
-        workers: Processes for the pieces (they are independent).
+        workers: Processes for the pieces (they are independent). They are spawned, so a
+            script building with workers > 1 needs an ``if __name__ == "__main__":`` guard.
     """
 
     thickness: float = 0.8e-3
@@ -288,9 +290,7 @@ def hulls_for_piece(ctx: WallContext, faces: IntArray) -> list[Hull]:
     With ``use_coacd``, a piece whose bisection needs three hulls or more also goes to CoACD,
     and CoACD's hulls are taken when they keep the lumen open and are fewer.
     """
-    hull = _solid_hull(ctx, faces)
-    if hull is not None and (_accept([hull], ctx, faces) or len(faces) == 1):
-        return [hull]
+    # _bisected tries the whole piece's hull first: a piece it accepts comes back as one hull.
     split = _bisected(ctx, faces)
     if ctx.params.use_coacd and len(split) >= 3 and len(faces) > 8:
         parts = _coacd_hulls(ctx, faces)
@@ -336,7 +336,10 @@ def build_hulls(
     """Returns the hulls of all pieces, in piece order (deterministic for any worker count)."""
     jobs = [ctx.subset(p) for p in pieces]
     if ctx.params.workers > 1 and len(pieces) > 1:
-        with ProcessPoolExecutor(max_workers=ctx.params.workers) as pool:
+        # Spawned, not forked: CoACD runs OpenMP, and a child forked after this process's
+        # OpenMP pool started (any earlier CoACD call here) hangs in its first parallel region.
+        spawn = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=ctx.params.workers, mp_context=spawn) as pool:
             results: Iterator[list[Hull]] = pool.map(_worker, jobs, chunksize=8)
             if progress is not None:
                 results = progress(results, len(jobs))
