@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,7 @@ from sim4endor.rl.bench import (
     load_bench_config,
     plan,
     run_bench,
+    write_report,
 )
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
@@ -69,6 +71,18 @@ def test_bench_writes_runs_table_figures_and_skips_finished_runs(tmp_path: Path)
     stamp = (tmp_path / "runs" / runs[0] / "evaluation.json").stat().st_mtime_ns
     run_bench(_tiny_bench(), tmp_path, make_env=pendulum_env)
     assert (tmp_path / "runs" / runs[0] / "evaluation.json").stat().st_mtime_ns == stamp
+    assert "Runs finished: 4 of 4." in text
+    assert "| ddpg-manifold-simplified_phantom-task_a-s0 | " in text  # the per-run table
+
+
+def test_report_of_an_unfinished_grid_names_the_missing_runs(tmp_path: Path) -> None:
+    run_bench(dataclasses.replace(_tiny_bench(), rows=(("ppo", "manifold"),)), tmp_path,
+              make_env=pendulum_env)
+    text = write_report(_tiny_bench(), tmp_path, None, "local").read_text()
+    assert ("Runs finished: 2 of 4; not in the tables yet: ddpg-manifold-simplified_phantom-"
+            "task_a-s0, ddpg-manifold-simplified_phantom-task_a-s1.") in text
+    assert "DDPG" not in (tmp_path / "table.md").read_text()
+    assert "this invocation" not in text  # only the report was written
 
 
 @pytest.mark.slow  # starting a local Ray cluster takes ~30 s on the shared machine

@@ -9,7 +9,7 @@ import pytest
 
 from sim4endor.cli import main
 from sim4endor.rl.config import apply_overrides, default_config, save_config
-from sim4endor.rl.table import RunResult, markdown_table, pool
+from sim4endor.rl.table import RunResult, markdown_table, per_run_table, pool
 
 
 def _result(algorithm: str, reward: str, task: str, seed: int, successes: int, time: float | None):
@@ -61,3 +61,12 @@ def test_table_command_finds_runs_below_a_folder(tmp_path: Path, capsys) -> None
 def test_table_command_without_runs_is_a_one_line_error(tmp_path: Path, capsys) -> None:
     assert main(["table", str(tmp_path)]) == 2
     assert "No evaluated runs" in capsys.readouterr().err
+
+
+def test_per_run_table_shows_each_run_in_readable_units() -> None:
+    evaluation = {"trials": 10, "success_rate": 0.2, "mean_completion_time_s": None,
+                  "mean_path_length_m": 0.24, "spl": 0.1323, "max_wall_force_n": 1.196,
+                  "train_wall_clock_s": 2433.0}
+    lines = per_run_table([("ddpg-s2", evaluation)]).splitlines()
+    assert lines[0].startswith("| Run | success | time (s) | path (mm) |")
+    assert lines[2] == "| ddpg-s2 | 2/10 | – | 240.0 | 0.13 | 1.20 | 40.5 |"

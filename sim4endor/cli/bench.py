@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None:
         bench = dataclasses.replace(bench, workers=args.workers)
     if args.report_only:
-        path = write_report(bench, args.out, 0.0, args.backend)
+        path = write_report(bench, args.out, None, args.backend)
     else:
         path = run_bench(bench, args.out, backend=args.backend)
     print(path)  # noqa: T201

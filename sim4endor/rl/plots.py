@@ -40,7 +40,9 @@ def scalar_names(run_dirs: Sequence[Path], prefix: str) -> list[str]:
 def learning_curve_figure(
     runs: Sequence[tuple[TrainConfig, Path]], name: str, title: str, out_path: Path
 ) -> Path:
-    """Plots scalar ``name`` vs frames, one line per (algorithm, reward): mean ± std over seeds.
+    """Plots scalar ``name`` vs frames, one line per (algorithm, reward): the mean over seeds,
+    shaded between the lowest and highest seed (with 3 seeds a ± std band would leave the
+    metric's range, e.g. success rates above 1).
 
     Seeds are aligned on the frames they have in common (runs evaluate at the same frames).
     """
@@ -59,9 +61,8 @@ def learning_curve_figure(
         length = min(len(f) for f, _ in curves)
         frames = curves[0][0][:length]
         values = np.stack([v[:length] for _, v in curves])
-        mean, std = values.mean(axis=0), values.std(axis=0)
-        ax.plot(frames, mean, label=f"{label} (n={len(curves)})")
-        ax.fill_between(frames, mean - std, mean + std, alpha=0.2)
+        ax.plot(frames, values.mean(axis=0), label=f"{label} (n={len(curves)})")
+        ax.fill_between(frames, values.min(axis=0), values.max(axis=0), alpha=0.2)
     ax.set_xlabel("environment steps (frames)")
     ax.set_ylabel(name)
     ax.set_title(title)

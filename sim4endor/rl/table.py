@@ -125,3 +125,30 @@ def _format_cell(cell: Cell) -> list[str]:
         f"{rate:.0%} ({cell.successes}/{cell.trials})",
         time,
     ]
+
+
+def per_run_table(evaluations: Sequence[tuple[str, dict[str, Any]]]) -> str:
+    """One markdown row per (run name, final evaluation): the spread that pooling hides."""
+    lines = [
+        "| Run | success | time (s) | path (mm) | SPL | max wall force (N) | training (min) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, ev in evaluations:
+        trials = int(ev["trials"])
+        successes = round(float(ev["success_rate"]) * trials)
+        cells = [
+            name,
+            f"{successes}/{trials}",
+            _number(ev.get("mean_completion_time_s"), "{:.2f}"),
+            _number(ev.get("mean_path_length_m"), "{:.1f}", 1e3),
+            _number(ev.get("spl"), "{:.2f}"),
+            _number(ev.get("max_wall_force_n"), "{:.2f}"),
+            _number(ev.get("train_wall_clock_s"), "{:.1f}", 1 / 60),
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _number(value: float | None, fmt: str, scale: float = 1.0) -> str:
+    return "–" if value is None else fmt.format(float(value) * scale)
+
