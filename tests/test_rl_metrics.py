@@ -12,6 +12,8 @@ from tensordict import TensorDict
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.evaluation import EpisodeKeys, episode_from_rollout, success_fraction
 from sim4endor.rl.metrics import Episode, path_length, spl_term, summarize
+from sim4endor.tasks import FAILURES
+from sim4endor.tasks.navigation import failure_code
 
 
 def _straight(length: float, steps: int) -> np.ndarray:
@@ -39,16 +41,19 @@ def test_summarize_scripted_episodes() -> None:
         # Success after a detour: travelled 0.2 m for a 0.1 m shortest path, 7 s.
         Episode(_straight(0.2, 140), True, 7.0, np.array([0.2]), 0.1),
         # Failure with the largest wall force.
-        Episode(_straight(0.05, 20), False, 1.0, np.array([0.9, 1.2]), 0.1, -100.0),
+        Episode(_straight(0.05, 20), False, 1.0, np.array([0.9, 1.2]), 0.1, -100.0, "tip_force"),
+        # Neither: the step limit ended it.
+        Episode(_straight(0.05, 20), False, 20.0, np.array([0.1]), 0.1),
     ]
     metrics = summarize(episodes)
-    assert metrics["success_rate"] == pytest.approx(2 / 3)
+    assert metrics["success_rate"] == pytest.approx(2 / 4)
     assert metrics["mean_completion_time_s"] == pytest.approx(6.0)  # failures do not count
-    assert metrics["mean_path_length_m"] == pytest.approx((0.1 + 0.2 + 0.05) / 3)
-    assert metrics["spl"] == pytest.approx((1.0 + 0.5 + 0.0) / 3)
+    assert metrics["mean_path_length_m"] == pytest.approx((0.1 + 0.2 + 0.05 + 0.05) / 4)
+    assert metrics["spl"] == pytest.approx((1.0 + 0.5 + 0.0 + 0.0) / 4)
     assert metrics["max_wall_force_n"] == pytest.approx(1.2)
-    assert metrics["mean_return"] == pytest.approx(-100.0 / 3)
-    assert metrics["trials"] == 3
+    assert metrics["mean_return"] == pytest.approx(-100.0 / 4)
+    assert metrics["outcomes"] == {"success": 2, "timeout": 1, "tip_force": 1}
+    assert metrics["trials"] == 4
 
 
 def test_summarize_without_success_has_no_completion_time() -> None:
@@ -94,6 +99,26 @@ def test_episode_from_a_scripted_rollout() -> None:
     assert episode.shortest_path_m == pytest.approx(9e-3 + 1e-3, rel=1e-5)
     assert episode.episode_return == pytest.approx(4.0)
     assert not math.isnan(summarize([episode])["spl"])
+    assert episode.failure == "" and episode.outcome == "success"
+
+
+def test_episode_failure_reason_from_the_failure_code() -> None:
+    steps = 3
+    rollout = TensorDict(
+        {
+            "observation": torch.zeros(steps, 6),
+            "next": {
+                "observation": torch.zeros(steps, 6),
+                "reward": torch.zeros(steps, 1),
+                "is_success": torch.zeros(steps, dtype=torch.bool),
+                "failure_code": torch.tensor([0, 0, failure_code("outside_lumen")]),
+            },
+        },
+        batch_size=[steps],
+    )
+    episode = episode_from_rollout(rollout)
+    assert episode.failure == "outside_lumen" == FAILURES[failure_code("outside_lumen") - 1]
+    assert failure_code("") == 0
 
 
 def test_success_fraction_of_no_finished_episode_is_none() -> None:

@@ -67,6 +67,8 @@ def test_per_run_table_shows_each_run_in_readable_units() -> None:
     evaluation = {"trials": 10, "success_rate": 0.2, "mean_completion_time_s": None,
                   "mean_path_length_m": 0.24, "spl": 0.1323, "max_wall_force_n": 1.196,
                   "train_wall_clock_s": 2433.0}
-    lines = per_run_table([("ddpg-s2", evaluation)]).splitlines()
-    assert lines[0].startswith("| Run | success | time (s) | path (mm) |")
-    assert lines[2] == "| ddpg-s2 | 2/10 | – | 240.0 | 0.13 | 1.20 | 40.5 |"
+    older = per_run_table([("ddpg-s2", evaluation)]).splitlines()
+    assert older[0].startswith("| Run | success | other outcomes | time (s) | path (mm) |")
+    assert older[2] == "| ddpg-s2 | 2/10 | – | – | 240.0 | 0.13 | 1.20 | 40.5 |"
+    evaluation["outcomes"] = {"success": 2, "timeout": 6, "tip_force": 2}
+    assert "| 2/10 | timeout 6, tip_force 2 | – |" in per_run_table([("s2", evaluation)])

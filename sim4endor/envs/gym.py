@@ -22,6 +22,7 @@ NUMERIC_INFO_KEYS: tuple[str, ...] = (
     "tip_force",
     "lumen_excess",
     "is_success",
+    "failure_code",
     "insertion_command",
     "rotation_command",
 )

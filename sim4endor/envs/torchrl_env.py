@@ -29,8 +29,9 @@ def make_torchrl_env(
     default ``[tip_position (m), tip_velocity (m/s)]``), ``"action"`` (2,) in [-1, 1],
     ``"reward"``, ``"done"``/``"terminated"``/``"truncated"`` and, after each step, the
     reward terms and diagnostics as float entries (``"reward_distance"``,
-    ``"reward_goal"``, ``"reward_failure"``, ``"manifold_distance"``, ``"wall_force"``,
-    ``"is_success"``, ...). It is picklable through its arguments, so
+    ``"reward_goal"``, ``"reward_failure"``, ``"manifold_distance"``, ``"wall_force"``, ...),
+    ``"is_success"`` (bool) and ``"failure_code"`` (int64, see
+    :func:`sim4endor.tasks.navigation.failure_code`). It is picklable through its arguments, so
     ``ParallelEnv(n, functools.partial(make_torchrl_env, domain, task, task_kwargs))`` works.
 
     Args:
@@ -43,11 +44,10 @@ def make_torchrl_env(
             (``"episode_reward"``), which training loops and logging read.
     """
     env = GymWrapper(NavigationEnv(domain, task, task_kwargs, environment_kwargs), device=device)
+    dtypes = {"is_success": torch.bool, "failure_code": torch.int64}
     info_spec = Composite(
         {
-            key: Unbounded(
-                shape=(), dtype=torch.bool if key == "is_success" else torch.float64, device=device
-            )
+            key: Unbounded(shape=(), dtype=dtypes.get(key, torch.float64), device=device)
             for key in NUMERIC_INFO_KEYS
         }
     )

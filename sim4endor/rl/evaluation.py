@@ -3,7 +3,8 @@
 The sim4endor TorchRL environments (:func:`sim4endor.envs.make_torchrl_env`) report, beside
 each step's ``observation`` (whose first three entries are the tip position in m), whether
 the target was reached (``is_success``), the wire–wall contact force (``wall_force``, N) and
-the geodesic distance from the tip to the target (``manifold_distance``, m); one step lasts
+the geodesic distance from the tip to the target (``manifold_distance``, m) and why an episode
+failed (``failure_code``, an index into :data:`sim4endor.tasks.FAILURES`); one step lasts
 the task's control period (``ActionConfig.control_timestep``, 0.05 s by default).
 :class:`EpisodeKeys` names those entries. An environment that lacks one (e.g. a generic
 control task used in tests) gives neutral values: no success, zero force, zero path lengths.
@@ -20,6 +21,7 @@ from tensordict.nn import TensorDictModuleBase
 from torchrl.envs import EnvBase, ExplorationType, set_exploration_type
 
 from sim4endor.rl.metrics import Episode
+from sim4endor.tasks import FAILURES
 
 #: Control period of the sim4endor tasks with their default action settings (20 Hz).
 DEFAULT_CONTROL_TIMESTEP_S = 0.05
@@ -36,6 +38,8 @@ class EpisodeKeys:
         wall_force: wire–wall contact force in N.
         distance: distance from the tip to the target along the centerline in m.
         control_timestep_s: simulated seconds per step (completion time = steps × this).
+        failure_code: int entry, 0 or the 1-based index of the failure reason in ``failures``.
+        failures: the failure reasons ``failure_code`` counts.
     """
 
     tip_position: str = "observation"
@@ -44,6 +48,8 @@ class EpisodeKeys:
     wall_force: str = "wall_force"
     distance: str = "manifold_distance"
     control_timestep_s: float = DEFAULT_CONTROL_TIMESTEP_S
+    failure_code: str = "failure_code"
+    failures: tuple[str, ...] = FAILURES
 
 
 def rollout_episodes(
@@ -85,6 +91,7 @@ def episode_from_rollout(rollout: TensorDictBase, keys: EpisodeKeys = EpisodeKey
         tips_np = np.zeros((steps + 1, 3))
     success = bool(nxt[keys.success].any()) if keys.success in present else False
     forces = nxt[keys.wall_force].reshape(-1).numpy() if keys.wall_force in present else np.zeros(0)
+    code = int(nxt[keys.failure_code][-1]) if keys.failure_code in present else 0
     shortest = 0.0
     if keys.distance in present:
         first_move = float(np.linalg.norm(tips_np[1] - tips_np[0]))
@@ -96,6 +103,7 @@ def episode_from_rollout(rollout: TensorDictBase, keys: EpisodeKeys = EpisodeKey
         wall_forces=forces,
         shortest_path_m=shortest,
         episode_return=float(nxt["reward"].sum()),
+        failure=keys.failures[code - 1] if code else "",
     )
 
 

@@ -9,12 +9,15 @@
   distance from the start tip to the target along the centerline) and p_i the tip path length.
 * ``max_wall_force_n``: largest wire–wall contact force seen in any episode.
 * ``mean_return``: mean sum of rewards.
+* ``outcomes``: how the episodes ended, counted: ``success``, a failure reason (e.g.
+  ``tip_force``) or ``timeout`` (neither before the step limit).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections import Counter
 from collections.abc import Sequence
 
 import numpy as np
@@ -30,6 +33,7 @@ METRIC_KEYS: tuple[str, ...] = (
     "spl",
     "max_wall_force_n",
     "mean_return",
+    "outcomes",
     "trials",
 )
 
@@ -45,6 +49,7 @@ class Episode:
         wall_forces: (T,) wire–wall contact force per step in N.
         shortest_path_m: geodesic distance from the start tip to the target in m.
         episode_return: sum of rewards.
+        failure: why the episode failed (the task's failure reason), or "" if it did not.
     """
 
     tip_positions: NDArray[np.float64]
@@ -53,6 +58,12 @@ class Episode:
     wall_forces: NDArray[np.float64]
     shortest_path_m: float
     episode_return: float = 0.0
+    failure: str = ""
+
+    @property
+    def outcome(self) -> str:
+        """``success``, the failure reason, or ``timeout``."""
+        return "success" if self.success else self.failure or "timeout"
 
     def __post_init__(self) -> None:
         tips = np.asarray(self.tip_positions, dtype=np.float64)
@@ -77,7 +88,7 @@ def spl_term(success: bool, shortest: float, travelled: float) -> float:
     return 1.0 if longest <= 0.0 else shortest / longest
 
 
-def summarize(episodes: Sequence[Episode]) -> dict[str, float | int | None]:
+def summarize(episodes: Sequence[Episode]) -> dict[str, float | int | dict[str, int] | None]:
     """Returns the metrics of :data:`METRIC_KEYS` over ``episodes`` (see the module docstring)."""
     if not episodes:
         raise Sim4EndoRError("Cannot summarise zero evaluation episodes; use --trials >= 1.")
@@ -98,6 +109,7 @@ def summarize(episodes: Sequence[Episode]) -> dict[str, float | int | None]:
         ),
         "max_wall_force_n": max(forces) if forces else 0.0,
         "mean_return": float(np.mean([e.episode_return for e in episodes])),
+        "outcomes": dict(sorted(Counter(e.outcome for e in episodes).items())),
         "trials": len(episodes),
     }
 

@@ -130,8 +130,9 @@ def _format_cell(cell: Cell) -> list[str]:
 def per_run_table(evaluations: Sequence[tuple[str, dict[str, Any]]]) -> str:
     """One markdown row per (run name, final evaluation): the spread that pooling hides."""
     lines = [
-        "| Run | success | time (s) | path (mm) | SPL | max wall force (N) | training (min) |",
-        "|---|---|---|---|---|---|---|",
+        "| Run | success | other outcomes | time (s) | path (mm) | SPL | max wall force (N) "
+        "| training (min) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for name, ev in evaluations:
         trials = int(ev["trials"])
@@ -139,6 +140,7 @@ def per_run_table(evaluations: Sequence[tuple[str, dict[str, Any]]]) -> str:
         cells = [
             name,
             f"{successes}/{trials}",
+            _outcomes(ev.get("outcomes")),
             _number(ev.get("mean_completion_time_s"), "{:.2f}"),
             _number(ev.get("mean_path_length_m"), "{:.1f}", 1e3),
             _number(ev.get("spl"), "{:.2f}"),
@@ -147,6 +149,14 @@ def per_run_table(evaluations: Sequence[tuple[str, dict[str, Any]]]) -> str:
         ]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _outcomes(outcomes: dict[str, int] | None) -> str:
+    """E.g. ``timeout 6, tip_force 2``; "–" when the evaluation predates outcome counts."""
+    if outcomes is None:
+        return "–"
+    others = [f"{name} {count}" for name, count in outcomes.items() if name != "success"]
+    return ", ".join(others) or "none"
 
 
 def _number(value: float | None, fmt: str, scale: float = 1.0) -> str:

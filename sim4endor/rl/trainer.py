@@ -324,7 +324,10 @@ class _Loop:
         }
         if self.logger is not None:
             for key, value in metrics.items():
-                if key != "frames" and value is not None:
+                if key == "outcomes":  # counts per outcome: one curve each
+                    for outcome, count in value.items():
+                        self.logger.log_scalar(f"eval/outcome_{outcome}", count, step=state.frames)
+                elif key != "frames" and value is not None:
                     self.logger.log_scalar(f"eval/{key}", float(value), step=state.frames)
         path = self.run_dir / EVALUATIONS_FILE
         previous = path.read_text() if path.is_file() else ""

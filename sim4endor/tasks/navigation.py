@@ -40,6 +40,12 @@ FAILURES: tuple[str, ...] = (
 )
 
 
+def failure_code(failure: str) -> int:
+    """``failure`` as a number for numeric-only consumers (TorchRL): 0 for none, else its
+    1-based position in :data:`FAILURES`."""
+    return FAILURES.index(failure) + 1 if failure else 0
+
+
 class InvalidActionError(Sim4EndoRError, ValueError):
     """Raised for a NaN/inf or wrongly shaped action; it never reaches MuJoCo."""
 
@@ -293,6 +299,7 @@ class NavigationTask(base.Task):
             "lumen_excess": ev.lumen_excess,
             "is_success": ev.success,
             "failure": ev.failure,
+            "failure_code": failure_code(ev.failure),
             "insertion_command": float(self._insertion),
             "rotation_command": float(self._rotation),
         }
