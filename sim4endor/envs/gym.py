@@ -76,7 +76,8 @@ class NavigationEnv(gymnasium.Env[Any, np.ndarray]):
     ``tip_force`` (tip section on the wall > 1 N), ``outside_lumen`` (tip > 0.5 mm outside),
     ``insertion_limit``, ``rotation_limit``, ``instability``. ``info`` also holds ``distance`` and
     ``manifold_distance`` (m), ``wall_force`` and ``tip_force`` (N), ``lumen_excess`` (m),
-    ``is_success``.
+    ``is_success`` and ``failure_code`` (0, or the failure's 1-based index in
+    ``sim4endor.tasks.FAILURES``).
 
     **Episode end**: ``terminated`` on success or failure; ``truncated`` after 20 s of
     simulated time (400 steps).
