@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 from rl_testing import TINY, pendulum_env
 
+from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.bench import (
     BenchConfig,
     BenchConfigError,
@@ -82,6 +83,11 @@ def test_report_of_an_unfinished_grid_names_the_missing_runs(tmp_path: Path) -> 
     assert ("Runs finished: 2 of 4; not in the tables yet: ddpg-manifold-simplified_phantom-"
             "task_a-s0, ddpg-manifold-simplified_phantom-task_a-s1.") in text
     assert "DDPG" not in (tmp_path / "table.md").read_text()
+    # Runs short of a longer grid's frames are unfinished there, whatever evaluation.json
+    # they hold (`sim4endor evaluate` writes one mid-training too).
+    longer = dataclasses.replace(_tiny_bench(), overrides=(*TINY, "collector.total_frames=400"))
+    with pytest.raises(Sim4EndoRError, match="No run"):
+        write_report(longer, tmp_path, None, "local")
     assert "this invocation" not in text  # only the report was written
 
 

@@ -86,10 +86,13 @@ def test_a_different_config_in_the_run_folder_is_refused(tmp_path: Path) -> None
 
 
 def test_evaluate_run_rewrites_the_evaluation(tmp_path: Path) -> None:
-    train(tiny_config("ppo"), tmp_path, make_env=pendulum_env, progress=False)
+    final = train(tiny_config("ppo"), tmp_path, make_env=pendulum_env, progress=False)
     metrics = evaluate_run(tmp_path, trials=3, make_env=pendulum_env)
     assert metrics["trials"] == 3
     assert json.loads((tmp_path / "evaluation.json").read_text())["trials"] == 3
+    # The same keys as the trainer's own final evaluation, training time included.
+    assert set(metrics) == set(final)
+    assert metrics["train_wall_clock_s"] == final["train_wall_clock_s"] > 0
 
 
 @pytest.mark.slow  # worker processes start in ~30 s on the shared machine

@@ -186,7 +186,8 @@ def write_report(
     results, evaluations, missing = [], [], []
     clocks: dict[str, list[float]] = {}
     for config, run_dir in runs:
-        evaluation = read_evaluation(run_dir)
+        # Not read_evaluation alone: `sim4endor evaluate` also writes one for a run mid-training.
+        evaluation = read_evaluation(run_dir) if _finished(config, run_dir) else None
         if evaluation is None:
             missing.append(run_dir.name)
             continue

@@ -68,7 +68,8 @@ def evaluate_run(
         make_env: ``seed -> env`` factory; defaults to the run's sim4endor task.
 
     Returns:
-        The metrics of :func:`sim4endor.rl.metrics.summarize` plus ``frames``.
+        The metrics of :func:`sim4endor.rl.metrics.summarize` plus ``frames`` and
+        ``train_wall_clock_s`` (from the checkpoint).
     """
     config = run_config(run_dir)
     seed = config.seed + EVAL_SEED_OFFSET if seed is None else seed
@@ -85,7 +86,13 @@ def evaluate_run(
     finally:
         env.close()
     progress = checkpoint.load_progress(run_dir)
-    metrics: dict[str, Any] = {"frames": progress.frames, **summarize(episodes)}
+    # The same keys as the trainer's final evaluation, so a re-evaluation keeps the run's
+    # training time in the tables.
+    metrics: dict[str, Any] = {
+        "frames": progress.frames,
+        "train_wall_clock_s": round(progress.wall_clock_s, 1),
+        **summarize(episodes),
+    }
     atomic_write_text(Path(run_dir) / EVALUATION_FILE, json.dumps(metrics, indent=2) + "\n")
     return metrics
 
