@@ -263,12 +263,12 @@ def _results_markdown(
         "",
         "## Hardware and wall-clock",
         "",
-        f"- machine: {platform.machine()}, {os.cpu_count()} logical CPUs, "
-        f"{platform.processor() or platform.platform()}; torch {torch.__version__} (CPU)",
+        f"- machine: {_cpu_model()}, {platform.machine()}, {os.cpu_count()} logical CPUs, "
+        f"{platform.platform()}; torch {torch.__version__} (CPU)",
         f"- backend: {backend}, {bench.workers} parallel runs",
         "- mean training wall-clock per run (includes periodic evaluation): "
         + ", ".join(
-            f"{algorithm.upper()} {sum(c) / len(c) / 60:.1f} min ({len(c)} runs)"
+            f"{algorithm.upper()} {sum(c) / len(c) / 60:.1f} min ({len(c)} run{'s' * (len(c) > 1)})"
             for algorithm, c in report.clocks.items()
         ),
     ]
@@ -279,3 +279,14 @@ def _results_markdown(
     lines += ["", "## Learning curves (mean over seeds, shaded from the lowest to the highest)", ""]
     lines += [f"![{path.stem}]({path.as_posix()})" for path in report.figures]
     return "\n".join(lines) + "\n"
+
+
+def _cpu_model() -> str:
+    """The CPU's model name (Linux), else what ``platform`` knows."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
