@@ -115,11 +115,12 @@ def _train_one(config: TrainConfig, run_dir: Path, make_env: EnvFactory | None) 
     return str(run_dir)
 
 
-def _finished(config: TrainConfig, run_dir: Path) -> bool:
-    return (
-        read_evaluation(run_dir) is not None
-        and checkpoint.load_progress(run_dir).frames >= config.collector.total_frames
-    )
+def _final_evaluation(config: TrainConfig, run_dir: Path) -> dict[str, Any] | None:
+    """The run's final evaluation, or None while it is short of its frames (`sim4endor
+    evaluate` also writes an evaluation mid-training)."""
+    if checkpoint.load_progress(run_dir).frames < config.collector.total_frames:
+        return None
+    return read_evaluation(run_dir)
 
 
 def run_bench(
@@ -146,7 +147,7 @@ def run_bench(
     todo = [
         (config, out_dir / "runs" / name)
         for name, config in plan(bench)
-        if not _finished(config, out_dir / "runs" / name)
+        if _final_evaluation(config, out_dir / "runs" / name) is None
     ]
     if backend == "ray":
         _run_ray(todo, make_env)
@@ -186,8 +187,7 @@ def write_report(
     results, evaluations, missing = [], [], []
     clocks: dict[str, list[float]] = {}
     for config, run_dir in runs:
-        # Not read_evaluation alone: `sim4endor evaluate` also writes one for a run mid-training.
-        evaluation = read_evaluation(run_dir) if _finished(config, run_dir) else None
+        evaluation = _final_evaluation(config, run_dir)
         if evaluation is None:
             missing.append(run_dir.name)
             continue

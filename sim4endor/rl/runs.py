@@ -8,14 +8,19 @@ from typing import Any
 
 from torchrl.envs import EnvBase
 
-from sim4endor._atomic import atomic_write_text
 from sim4endor.rl import checkpoint
 from sim4endor.rl.algorithms import Agent, build_agent
 from sim4endor.rl.config import TrainConfig, load_config
 from sim4endor.rl.envs import EnvFactory, env_factory
 from sim4endor.rl.evaluation import rollout_episodes
-from sim4endor.rl.metrics import summarize
-from sim4endor.rl.trainer import CONFIG_FILE, EVAL_SEED_OFFSET, EVALUATION_FILE, RunDirError
+from sim4endor.rl.trainer import (
+    CONFIG_FILE,
+    EVAL_SEED_OFFSET,
+    EVALUATION_FILE,
+    RunDirError,
+    evaluation_record,
+    write_final_evaluation,
+)
 
 
 def run_config(run_dir: Path) -> TrainConfig:
@@ -85,15 +90,9 @@ def evaluate_run(
         )
     finally:
         env.close()
-    progress = checkpoint.load_progress(run_dir)
-    # The same keys as the trainer's final evaluation, so a re-evaluation keeps the run's
-    # training time in the tables.
-    metrics: dict[str, Any] = {
-        "frames": progress.frames,
-        "train_wall_clock_s": round(progress.wall_clock_s, 1),
-        **summarize(episodes),
-    }
-    atomic_write_text(Path(run_dir) / EVALUATION_FILE, json.dumps(metrics, indent=2) + "\n")
+    # The trainer's own record, so a re-evaluation keeps the run's training time in the tables.
+    metrics = evaluation_record(checkpoint.load_progress(run_dir), episodes)
+    write_final_evaluation(run_dir, metrics)
     return metrics
 
 

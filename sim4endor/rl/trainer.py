@@ -38,7 +38,7 @@ from sim4endor.rl.algorithms import Agent, build_agent
 from sim4endor.rl.config import TrainConfig, load_config, save_config, to_dict
 from sim4endor.rl.envs import EnvFactory, env_factory
 from sim4endor.rl.evaluation import EpisodeKeys, rollout_episodes, success_fraction
-from sim4endor.rl.metrics import summarize
+from sim4endor.rl.metrics import Episode, summarize
 
 _LOG = logging.getLogger(__name__)
 
@@ -47,6 +47,20 @@ EVALUATIONS_FILE = "evaluations.jsonl"
 EVALUATION_FILE = "evaluation.json"
 #: Offset between the training and evaluation seeds, so evaluation starts are never trained on.
 EVAL_SEED_OFFSET = 10_000
+
+
+def evaluation_record(progress: checkpoint.Progress, episodes: list[Episode]) -> dict[str, Any]:
+    """One evaluation's metrics with the run's counters (a line of ``evaluations.jsonl``)."""
+    return {
+        "frames": progress.frames,
+        "train_wall_clock_s": round(progress.wall_clock_s, 1),
+        **summarize(episodes),
+    }
+
+
+def write_final_evaluation(run_dir: Path, metrics: dict[str, Any]) -> None:
+    """Writes ``run_dir/evaluation.json``, what the tables read."""
+    atomic_write_text(Path(run_dir) / EVALUATION_FILE, json.dumps(metrics, indent=2) + "\n")
 
 
 class RunDirError(Sim4EndoRError):
@@ -317,11 +331,7 @@ class _Loop:
             seed=cfg.seed + EVAL_SEED_OFFSET,
             keys=self.keys,
         )
-        metrics: dict[str, Any] = {
-            "frames": state.frames,
-            "train_wall_clock_s": round(state.wall_clock_s, 1),
-            **summarize(episodes),
-        }
+        metrics = evaluation_record(state, episodes)
         if self.logger is not None:
             for key, value in metrics.items():
                 if key == "outcomes":  # counts per outcome: one curve each
@@ -336,5 +346,5 @@ class _Loop:
 
     def final_evaluation(self, state: checkpoint.Progress) -> dict[str, Any]:
         metrics = self.evaluate(state)
-        atomic_write_text(self.run_dir / EVALUATION_FILE, json.dumps(metrics, indent=2) + "\n")
+        write_final_evaluation(self.run_dir, metrics)
         return metrics
