@@ -50,6 +50,18 @@ def test_builtin_and_missing_policies() -> None:
     assert a.shape == (2,) and np.all(np.abs(a) <= 1)
     with pytest.raises(render.PolicyLoadError, match="neither"):
         render.load_policy("no_such_policy.pt", 0)
+    with pytest.raises(render.PolicyLoadError, match="expert needs the environment"):
+        render.load_policy("expert", 0)
+
+
+def test_expert_policy_acts_on_the_environment_not_the_observation() -> None:
+    from sim4endor import suite
+
+    env = suite.load("simplified_phantom", "task_b", {"random": 1})
+    env.reset()
+    policy = render.load_policy("expert", 0, env)
+    action = policy(np.zeros(6))
+    assert action.shape == (2,) and action[0] > 0.0  # the trunk is straight ahead: push
 
 
 @pytest.mark.render

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from sim4endor.suite import NavigationEnvironment
 
 Policy = Callable[[np.ndarray], np.ndarray]
-BUILTIN_POLICIES = ("insert", "random")
+BUILTIN_POLICIES = ("insert", "random", "expert")
 TARGET_RGBA = np.array([0.1, 0.9, 0.2, 0.8], dtype=np.float32)
 
 
@@ -32,15 +32,25 @@ class PolicyLoadError(Sim4EndoRError, ValueError):
     """Raised when ``--policy`` is neither a built-in name nor a loadable policy file."""
 
 
-def load_policy(spec: str, seed: int) -> Policy:
+def load_policy(spec: str, seed: int, env: NavigationEnvironment | None = None) -> Policy:
     """Returns an observation-vector -> action function.
 
     Args:
-        spec: ``"insert"`` (push straight in), ``"random"`` (uniform actions) or the path of a
-            TorchScript policy exported by ``sim4endor.rl.export`` (observation (6,) float32
-            -> action (2,) in [-1, 1]).
+        spec: ``"insert"`` (push straight in), ``"random"`` (uniform actions), ``"expert"``
+            (:class:`sim4endor.tasks.expert.CenterlineExpert`, which reads ``env``'s wire and
+            centerline rather than the observation) or the path of a TorchScript policy
+            exported by ``sim4endor.rl.export`` (observation (6,) float32 -> action (2,) in
+            [-1, 1]).
         seed: Seed of the random policy.
+        env: The environment the policy acts in (needed by ``"expert"``).
     """
+    if spec == "expert":
+        if env is None:
+            raise PolicyLoadError("--policy expert needs the environment it acts in.")
+        from sim4endor.tasks.expert import CenterlineExpert
+
+        expert = CenterlineExpert()  # a fresh one per episode: nothing to reset
+        return lambda _obs: expert(env.physics, env.task)
     if spec == "insert":
         return lambda _obs: np.array([1.0, 0.0])
     if spec == "random":
@@ -126,7 +136,7 @@ def render_episode(args: argparse.Namespace) -> int:
     from sim4endor import suite
 
     env = suite.load(args.domain, args.task, {"random": args.seed, "reward": args.reward})
-    policy = load_policy(args.policy, args.seed)
+    policy = load_policy(args.policy, args.seed, env)
     timestep = env.reset()
 
     def mark_target(_physics: Any, scene: mujoco.MjvScene) -> None:
@@ -166,7 +176,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("domain", help="suite domain, e.g. simplified_phantom")
     parser.add_argument("task", help="suite task, e.g. task_a")
     parser.add_argument("--policy", default="insert",
-                        help="'insert', 'random' or an exported TorchScript policy (.pt)")
+                        help="'insert', 'random', 'expert' (scripted, reads the wire and centerline) "
+                             "or an exported TorchScript policy (.pt)")
     parser.add_argument("--out", type=Path, default=Path("episode.mp4"), help="video file")
     parser.add_argument("--seed", type=int, default=0, help="task and random-policy seed")
     parser.add_argument("--reward", choices=("manifold", "euclidean"), default="manifold")

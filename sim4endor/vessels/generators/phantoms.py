@@ -175,10 +175,17 @@ def vascular_phantom(config: VascularPhantomConfig = VascularPhantomConfig(),
 
     Layout (mm, degrees): a trunk with a 20 mm straight run and an S-bend (two 70° arcs of
     radius 9) ends at bifurcation 1. Its upper child climbs out of plane to bifurcation 2, where
-    branch A takes a 100° bend (radius 10) and a 12 mm straight run; the lower child curves
-    down to bifurcation 3, where branch B winds through two opposite 80° bends (radius 7) before
-    its end. Targets A and B are two bifurcations deep; the two other children are short
-    straight side branches (distractors).
+    branch A takes a 100° bend (radius 10) and a 12 mm straight run; the lower child leaves
+    straight below the S-bend's plane and curves down to bifurcation 3, where branch B winds
+    through two opposite 80° bends (radius 10) before its end. Targets A and B are two
+    bifurcations deep; the two other children are short straight side branches (distractors).
+
+    Both targets are reachable by a scripted J-tip expert (``tests/test_expert.py``). The wire
+    leaves the S-bend still heading about 20° towards the outer wall of its last arc (it lags
+    the bend), so a child on that side wins whatever the tip does: with ``lower`` rolled to
+    240° (in the plane of ``upper``, partly opposite the lag) no roll of the tip got the wire
+    into it; at 270° (perpendicular to the lag) it does. The radius-7 bends of an earlier
+    branch B stopped the wire at the 1 N tip-force limit; radius 10 lets it through.
 
     Args:
         config: Radii, jitter and resolution.
@@ -200,7 +207,7 @@ def vascular_phantom(config: VascularPhantomConfig = VascularPhantomConfig(),
                  Straight(8 * MM)), radius(0.0), radius(0.25)),
         _Branch("upper", "trunk", 35.0, 60.0,
                 (Straight(14 * MM), Arc(30, 25 * MM, 180.0)), radius(0.3), radius(0.5)),
-        _Branch("lower", "trunk", 40.0, 240.0,
+        _Branch("lower", "trunk", 40.0, 270.0,
                 (Arc(45, 20 * MM, 0.0), Straight(8 * MM)), radius(0.3), radius(0.5)),
         _Branch("A", "upper", 40.0, 0.0,
                 (Straight(6 * MM), Arc(100, 10 * MM, 180.0), Straight(12 * MM)),
@@ -208,7 +215,7 @@ def vascular_phantom(config: VascularPhantomConfig = VascularPhantomConfig(),
         _Branch("upper_side", "upper", 35.0, 180.0, (Straight(25 * MM),),
                 radius(0.6), radius(1.0)),
         _Branch("B", "lower", 45.0, 90.0,
-                (Straight(5 * MM), Arc(80, 7 * MM, 0.0), Arc(80, 7 * MM, 180.0), Straight(8 * MM)),
+                (Straight(5 * MM), Arc(80, 10 * MM, 0.0), Arc(80, 10 * MM, 180.0), Straight(8 * MM)),
                 radius(0.6), radius(1.0)),
         _Branch("lower_side", "lower", 30.0, 270.0, (Straight(20 * MM),),
                 radius(0.6), radius(1.0)),

@@ -1,0 +1,184 @@
+"""A scripted expert that steers the J-tip along the centerline to the task's target.
+
+It does what an interventionist does at a bifurcation: roll the wire until the bent tip points
+into the branch the path takes, then push; back off when the wire went the wrong way or the
+tip presses hard on the wall. It reads privileged state (the wire's shape and the centerline
+graph), so it is not an RL baseline on the paper's observation; it is
+
+- the **reachability check** of an anatomy: a target the expert cannot reach with the wire is
+  a defect of the geometry, not a hard task (``tests/test_expert.py`` runs it on the shipped
+  phantoms);
+- a source of demonstrations and a sanity reference for learnt policies.
+
+Example:
+    >>> from sim4endor import suite
+    >>> from sim4endor.tasks.expert import CenterlineExpert, run_expert
+    >>> env = suite.load("simplified_phantom", "task_b", {"random": 0})   # doctest: +SKIP
+    >>> run_expert(env, CenterlineExpert())["is_success"]                 # doctest: +SKIP
+    True
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from dm_control.rl import control
+from numpy.typing import NDArray
+
+from sim4endor import rewards
+from sim4endor.models.guidewire import GuidewireConfig
+from sim4endor.physics import GuidewirePhysics
+from sim4endor.tasks.navigation import NavigationTask
+from sim4endor.vessels.centerline import Projection
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ExpertConfig:
+    """Gains and thresholds of :class:`CenterlineExpert` (SI units).
+
+    Attributes:
+        lookahead: The path direction is taken from the tip's projection on the centerline to
+            the point this far (m) along the path to the target.
+        straight: Below this lateral component (of a unit vector, relative to the wire's body
+            axis) the path runs straight ahead and the tip's roll does not matter.
+        tolerance_deg: Insert only while the tip's bend points within this angle of the path's
+            turn; otherwise only roll.
+        push: Insertion action while aligned (fraction of the largest step).
+        slow_force: Tip contact force (N) above which the push drops to ``slow_push``.
+        slow_push: Insertion action while the tip presses on the wall.
+        back_force: Tip contact force (N) above which the wire is pulled back a little.
+        lost: A manifold distance this much (m) above the best of the episode means the tip
+            took a wrong branch.
+        back_off_steps: Control steps of full retraction after a wrong branch.
+        tip_length: Arc length of the wire's pre-bent tip (m); the body axis is measured just
+            proximal of it.
+    """
+
+    lookahead: float = 0.006
+    straight: float = 0.15
+    tolerance_deg: float = 25.0
+    push: float = 0.6
+    slow_force: float = 0.25
+    slow_push: float = 0.2
+    back_force: float = 0.5
+    lost: float = 0.004
+    back_off_steps: int = 8
+    tip_length: float = field(default_factory=lambda: GuidewireConfig().tip_length)
+
+
+@dataclass(frozen=True)
+class _Route:
+    """Per (anatomy, target): distances to the target and the graph's adjacency."""
+
+    distance: rewards.ManifoldDistance
+    neighbours: list[list[int]]
+
+
+class CenterlineExpert:
+    """Scripted policy for :class:`~sim4endor.tasks.NavigationTask`; call :meth:`reset` per episode."""
+
+    def __init__(self, config: ExpertConfig | None = None) -> None:
+        self.config = config or ExpertConfig()
+        self._routes: dict[tuple[str, str], _Route] = {}
+        self._best = math.inf
+        self._backing_off = 0
+
+    def reset(self) -> None:
+        """Forgets the episode (best distance, retraction under way)."""
+        self._best = math.inf
+        self._backing_off = 0
+
+    def __call__(self, physics: GuidewirePhysics, task: NavigationTask) -> FloatArray:
+        """Returns the action ``[insert, rotate]`` in [-1, 1] for the current state."""
+        cfg = self.config
+        route = self._route(task)
+        distance = route.distance
+        points = physics.wire_points()
+        tip = points[-1]
+        proj = distance.project(tip)
+        d = distance.graph.distance_at(proj, distance.node_distances)
+        if self._backing_off:
+            self._backing_off -= 1
+            return np.array([-1.0, 0.0])
+        if d > self._best + cfg.lost:
+            # The tip went down a branch off the path: pull it back above the bifurcation.
+            self._backing_off = cfg.back_off_steps - 1
+            self._best = d
+            return np.array([-1.0, 0.0])
+        self._best = min(self._best, d)
+
+        force = physics.tip_contact_force()
+        heading = _unit(points[-1] - points[-2])
+        body = self._body_axis(points)
+        path = _unit(self._path_ahead(route, proj))
+        bend = heading - (heading @ body) * body
+        turn = path - (path @ body) * body
+        aligned = True
+        rotate = 0.0
+        if np.linalg.norm(turn) >= cfg.straight and np.linalg.norm(bend) > 1e-9:
+            # Roll angle from the tip's bend to the path's turn, about the body axis.
+            phi = math.atan2(float(body @ np.cross(bend, turn)), float(bend @ turn))
+            rotate = float(np.clip(phi / task.config.action.max_rotation_step, -1.0, 1.0))
+            aligned = abs(math.degrees(phi)) < cfg.tolerance_deg
+        if force > cfg.back_force:
+            insert = -0.5
+        elif not aligned:
+            insert = 0.0
+        elif force > cfg.slow_force:
+            insert = cfg.slow_push
+        else:
+            insert = cfg.push
+        return np.array([insert, rotate])
+
+    def _route(self, task: NavigationTask) -> _Route:
+        key = (task.anatomy.key, task.target)
+        if key not in self._routes:
+            graph = task.anatomy.vessel.centerline
+            self._routes[key] = _Route(
+                rewards.ManifoldDistance(graph, graph.labels[task.target]), graph.neighbours()
+            )
+        return self._routes[key]
+
+    def _body_axis(self, points: FloatArray) -> FloatArray:
+        """Direction of the wire just proximal of the pre-bent tip."""
+        from_tip = np.cumsum(np.linalg.norm(np.diff(points[::-1], axis=0), axis=1))
+        base = len(points) - 1 - int(np.searchsorted(from_tip, self.config.tip_length * 0.999)) - 1
+        base = max(base, 2)
+        return _unit(points[base] - points[base - 2])
+
+    def _path_ahead(self, route: _Route, proj: Projection) -> FloatArray:
+        """Vector from the tip's projection to the path point ``lookahead`` further on."""
+        graph, dist = route.distance.graph, route.distance.node_distances
+        i, j = graph.edges[proj.edge]
+        node = int(i if dist[i] < dist[j] else j)
+        travelled = float(np.linalg.norm(graph.nodes[node] - proj.point))
+        while travelled < self.config.lookahead:
+            closer = [n for n in route.neighbours[node] if dist[n] < dist[node]]
+            if not closer:
+                break
+            nxt = min(closer, key=lambda n: dist[n])
+            travelled += float(np.linalg.norm(graph.nodes[nxt] - graph.nodes[node]))
+            node = nxt
+        return graph.nodes[node] - proj.point
+
+
+def run_expert(env: control.Environment, expert: CenterlineExpert | None = None,
+               max_steps: int | None = None) -> dict[str, float | bool | str]:
+    """Runs one episode of ``expert`` on a suite environment; returns the last step's info."""
+    expert = expert or CenterlineExpert()
+    expert.reset()
+    timestep = env.reset()
+    steps = 0
+    while not timestep.last() and (max_steps is None or steps < max_steps):
+        timestep = env.step(expert(env.physics, env.task))
+        steps += 1
+    return env.task.step_info()
+
+
+def _unit(v: FloatArray) -> FloatArray:
+    n = float(np.linalg.norm(v))
+    return v / n if n > 0 else v
