@@ -51,6 +51,7 @@ class ExpertConfig:
         slow_force: Tip contact force (N) above which the push drops to ``slow_push``.
         slow_push: Insertion action while the tip presses on the wall.
         back_force: Tip contact force (N) above which the wire is pulled back a little.
+        back_push: Insertion action (negative: retraction) while the tip presses that hard.
         lost: A manifold distance this much (m) above the best of the episode means the tip
             took a wrong branch.
         back_off_steps: Control steps of full retraction after a wrong branch.
@@ -65,6 +66,7 @@ class ExpertConfig:
     slow_force: float = 0.25
     slow_push: float = 0.2
     back_force: float = 0.5
+    back_push: float = -0.5
     lost: float = 0.004
     back_off_steps: int = 8
     tip_length: float = field(default_factory=lambda: GuidewireConfig().tip_length)
@@ -79,7 +81,10 @@ class _Route:
 
 
 class CenterlineExpert:
-    """Scripted policy for :class:`~sim4endor.tasks.NavigationTask`; call :meth:`reset` per episode."""
+    """Scripted policy for a :class:`~sim4endor.tasks.NavigationTask`.
+
+    Call :meth:`reset` at the start of every episode (:func:`run_expert` does).
+    """
 
     def __init__(self, config: ExpertConfig | None = None) -> None:
         self.config = config or ExpertConfig()
@@ -125,7 +130,7 @@ class CenterlineExpert:
             rotate = float(np.clip(phi / task.config.action.max_rotation_step, -1.0, 1.0))
             aligned = abs(math.degrees(phi)) < cfg.tolerance_deg
         if force > cfg.back_force:
-            insert = -0.5
+            insert = cfg.back_push
         elif not aligned:
             insert = 0.0
         elif force > cfg.slow_force:
@@ -146,6 +151,7 @@ class CenterlineExpert:
     def _body_axis(self, points: FloatArray) -> FloatArray:
         """Direction of the wire just proximal of the pre-bent tip."""
         from_tip = np.cumsum(np.linalg.norm(np.diff(points[::-1], axis=0), axis=1))
+        # 0.999: the tip's segments add up to tip_length only up to rounding.
         base = len(points) - 1 - int(np.searchsorted(from_tip, self.config.tip_length * 0.999)) - 1
         base = max(base, 2)
         return _unit(points[base] - points[base - 2])
