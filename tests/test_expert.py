@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from sim4endor import suite
-from sim4endor.tasks.expert import CenterlineExpert, ExpertConfig, run_expert
+from sim4endor.tasks.expert import CenterlineExpert, run_expert
 
 PHANTOM_TASKS = [(domain, task) for domain in ("simplified_phantom", "vascular_phantom")
                  for task in ("task_a", "task_b")]

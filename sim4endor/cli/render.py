@@ -176,8 +176,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("domain", help="suite domain, e.g. simplified_phantom")
     parser.add_argument("task", help="suite task, e.g. task_a")
     parser.add_argument("--policy", default="insert",
-                        help="'insert', 'random', 'expert' (scripted, reads the wire and centerline) "
-                             "or an exported TorchScript policy (.pt)")
+                        help="'insert', 'random', 'expert' (scripted, reads the wire and "
+                             "centerline) or an exported TorchScript policy (.pt)")
     parser.add_argument("--out", type=Path, default=Path("episode.mp4"), help="video file")
     parser.add_argument("--seed", type=int, default=0, help="task and random-policy seed")
     parser.add_argument("--reward", choices=("manifold", "euclidean"), default="manifold")
