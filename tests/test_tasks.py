@@ -184,7 +184,7 @@ def test_reset_distance_is_measured_at_the_placed_start() -> None:
     env.reset()
     task = env.task
     # The first step's distance reward compares with this, so it must be the start pose's.
-    assert task._d_last == task._manifold()(env.physics.tip_position())
+    assert task._d_last == task.manifold_distance()(env.physics.tip_position())
 
 
 def test_straight_insertion_passes_the_vascular_phantom_to_a() -> None:

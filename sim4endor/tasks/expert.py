@@ -72,14 +72,6 @@ class ExpertConfig:
     tip_length: float = field(default_factory=lambda: GuidewireConfig().tip_length)
 
 
-@dataclass(frozen=True)
-class _Route:
-    """Per (anatomy, target): distances to the target and the graph's adjacency."""
-
-    distance: rewards.ManifoldDistance
-    neighbours: list[list[int]]
-
-
 class CenterlineExpert:
     """Scripted policy for a :class:`~sim4endor.tasks.NavigationTask`.
 
@@ -88,7 +80,7 @@ class CenterlineExpert:
 
     def __init__(self, config: ExpertConfig | None = None) -> None:
         self.config = config or ExpertConfig()
-        self._routes: dict[tuple[str, str], _Route] = {}
+        self._neighbours: dict[str, list[list[int]]] = {}  # per anatomy
         self._best = math.inf
         self._backing_off = 0
 
@@ -100,12 +92,10 @@ class CenterlineExpert:
     def __call__(self, physics: GuidewirePhysics, task: NavigationTask) -> FloatArray:
         """Returns the action ``[insert, rotate]`` in [-1, 1] for the current state."""
         cfg = self.config
-        route = self._route(task)
-        distance = route.distance
+        distance = task.manifold_distance()
         points = physics.wire_points()
-        tip = points[-1]
-        proj = distance.project(tip)
-        d = distance.graph.distance_at(proj, distance.node_distances)
+        proj = distance.project(points[-1])
+        d = distance.at(proj)
         if self._backing_off:
             self._backing_off -= 1
             return np.array([-1.0, 0.0])
@@ -119,7 +109,7 @@ class CenterlineExpert:
         force = physics.tip_contact_force()
         heading = _unit(points[-1] - points[-2])
         body = self._body_axis(points)
-        path = _unit(self._path_ahead(route, proj))
+        path = _unit(self._path_ahead(distance, self._adjacency(task), proj))
         bend = heading - (heading @ body) * body
         turn = path - (path @ body) * body
         aligned = True
@@ -139,14 +129,11 @@ class CenterlineExpert:
             insert = cfg.push
         return np.array([insert, rotate])
 
-    def _route(self, task: NavigationTask) -> _Route:
-        key = (task.anatomy.key, task.target)
-        if key not in self._routes:
-            graph = task.anatomy.vessel.centerline
-            self._routes[key] = _Route(
-                rewards.ManifoldDistance(graph, graph.labels[task.target]), graph.neighbours()
-            )
-        return self._routes[key]
+    def _adjacency(self, task: NavigationTask) -> list[list[int]]:
+        key = task.anatomy.key
+        if key not in self._neighbours:
+            self._neighbours[key] = task.anatomy.vessel.centerline.neighbours()
+        return self._neighbours[key]
 
     def _body_axis(self, points: FloatArray) -> FloatArray:
         """Direction of the wire just proximal of the pre-bent tip."""
@@ -156,14 +143,15 @@ class CenterlineExpert:
         base = max(base, 2)
         return _unit(points[base] - points[base - 2])
 
-    def _path_ahead(self, route: _Route, proj: Projection) -> FloatArray:
+    def _path_ahead(self, distance: rewards.ManifoldDistance, neighbours: list[list[int]],
+                    proj: Projection) -> FloatArray:
         """Vector from the tip's projection to the path point ``lookahead`` further on."""
-        graph, dist = route.distance.graph, route.distance.node_distances
+        graph, dist = distance.graph, distance.node_distances
         i, j = graph.edges[proj.edge]
         node = int(i if dist[i] < dist[j] else j)
         travelled = float(np.linalg.norm(graph.nodes[node] - proj.point))
         while travelled < self.config.lookahead:
-            closer = [n for n in route.neighbours[node] if dist[n] < dist[node]]
+            closer = [n for n in neighbours[node] if dist[n] < dist[node]]
             if not closer:
                 break
             nxt = min(closer, key=lambda n: dist[n])

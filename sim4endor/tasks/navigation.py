@@ -164,7 +164,9 @@ class NavigationTask(base.Task):
             )
         return self._distances[key]
 
-    def _manifold(self) -> rewards.ManifoldDistance:
+    def manifold_distance(self) -> rewards.ManifoldDistance:
+        """The current target's geodesic distance along the centerline (built once per
+        anatomy and target; the success test and the ``manifold_distance`` entry use it)."""
         distance = self._distance("manifold")
         assert isinstance(distance, rewards.ManifoldDistance)
         return distance
@@ -243,7 +245,7 @@ class NavigationTask(base.Task):
             force, tip_force, excess = math.inf, math.inf, math.inf
         else:
             tip = physics.tip_position()
-            to_target = self._manifold()
+            to_target = self.manifold_distance()
             proj = to_target.project(tip)  # one projection serves every term
             manifold = to_target.at(proj)
             distance = (
@@ -348,7 +350,7 @@ class NavigationTask(base.Task):
         if name == "rotation":
             return np.array([physics.rotation_angle()], dtype=np.float64)
         if name == "manifold_distance":
-            return np.array([self._manifold()(physics.tip_position())])
+            return np.array([self.manifold_distance()(physics.tip_position())])
         if name == "pixels":
             return self._fluoroscopy(physics)
         raise KeyError(name)  # unreachable: NavigationConfig validates the names
