@@ -3,21 +3,25 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 from pathlib import Path
 
 import pytest
 from rl_testing import TINY, pendulum_env
+from torchrl.envs import EnvBase
 
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.bench import (
     BenchConfig,
     BenchConfigError,
+    BenchRunError,
     bench_config_from_dict,
     load_bench_config,
     plan,
     run_bench,
     write_report,
 )
+from sim4endor.rl.trainer import EVAL_SEED_OFFSET
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
@@ -89,6 +93,41 @@ def test_report_of_an_unfinished_grid_names_the_missing_runs(tmp_path: Path) -> 
     with pytest.raises(Sim4EndoRError, match="No run"):
         write_report(longer, tmp_path, None, "local")
     assert "this invocation" not in text  # only the report was written
+
+
+def _pendulum_failing_seed_1(seed: int) -> EnvBase:
+    # The evaluation env of training seed 1 is built first (seed 1 + EVAL_SEED_OFFSET).
+    if seed == 1 + EVAL_SEED_OFFSET:
+        raise RuntimeError("broken env for seed 1")
+    return pendulum_env(seed)
+
+
+def test_a_failing_run_is_named_and_the_rest_of_the_grid_still_trains(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    bench = dataclasses.replace(_tiny_bench(), rows=(("ddpg", "manifold"),))
+    with caplog.at_level(logging.INFO, logger="sim4endor.rl.bench"):
+        with pytest.raises(BenchRunError, match=r"1 of 2 runs failed.*task_a-s1 \(RuntimeError: "
+                           r"broken env for seed 1\).*results\.md"):
+            run_bench(bench, tmp_path, make_env=_pendulum_failing_seed_1, progress=False)
+    # Pendulum has no target: 0 successes.
+    assert "run ddpg-manifold-simplified_phantom-task_a-s0 finished (1/2): 0/2 successes" in (
+        caplog.text
+    )
+    assert "run ddpg-manifold-simplified_phantom-task_a-s1 failed" in caplog.text
+    text = (tmp_path / "results.md").read_text()
+    assert "Runs finished: 1 of 2; not in the tables yet: ddpg-manifold-simplified_phantom-" \
+        "task_a-s1." in text
+    # Rerunning retries only the failed run.
+    run_bench(bench, tmp_path, make_env=pendulum_env, progress=False)
+    assert "Runs finished: 2 of 2." in (tmp_path / "results.md").read_text()
+
+
+def test_a_grid_whose_every_run_fails_says_so(tmp_path: Path) -> None:
+    bench = dataclasses.replace(_tiny_bench(), rows=(("ddpg", "manifold"),), seeds=(1,))
+    with pytest.raises(BenchRunError, match=r"Every run of the bench failed: .*broken env"):
+        run_bench(bench, tmp_path, make_env=_pendulum_failing_seed_1, progress=False)
+    assert not (tmp_path / "results.md").exists()
 
 
 @pytest.mark.slow  # starting a local Ray cluster takes ~30 s on the shared machine

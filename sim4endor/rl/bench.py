@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import dataclasses
+import logging
 import multiprocessing
 import os
 import platform
@@ -21,6 +22,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
+from tqdm.auto import tqdm
+from tqdm.contrib.logging import logging_redirect_tqdm
 
 from sim4endor._atomic import atomic_write_text
 from sim4endor.errors import Sim4EndoRError
@@ -33,6 +36,8 @@ from sim4endor.rl.table import RunResult, markdown_table, per_run_table
 from sim4endor.rl.trainer import train
 
 Backend = Literal["local", "ray"]
+
+_LOG = logging.getLogger(__name__)
 
 
 class BenchConfigError(Sim4EndoRError, ValueError):
@@ -110,9 +115,15 @@ def plan(bench: BenchConfig) -> list[tuple[str, TrainConfig]]:
     return runs
 
 
-def _train_one(config: TrainConfig, run_dir: Path, make_env: EnvFactory | None) -> str:
-    train(config, run_dir, make_env=make_env, progress=False)
-    return str(run_dir)
+def _train_one(
+    config: TrainConfig, run_dir: Path, make_env: EnvFactory | None, progress: bool
+) -> dict[str, Any] | str:
+    """Trains one grid point; returns its final evaluation, or what went wrong."""
+    try:
+        return train(config, run_dir, make_env=make_env, progress=progress)
+    except Exception as exc:  # one broken run must not end a night-long grid
+        _LOG.exception("run %s failed", run_dir.name)
+        return f"{type(exc).__name__}: {exc}"
 
 
 def _final_evaluation(config: TrainConfig, run_dir: Path) -> dict[str, Any] | None:
@@ -123,14 +134,21 @@ def _final_evaluation(config: TrainConfig, run_dir: Path) -> dict[str, Any] | No
     return read_evaluation(run_dir)
 
 
+class BenchRunError(Sim4EndoRError):
+    """Some runs of a grid failed; the others finished and are in the report."""
+
+
 def run_bench(
     bench: BenchConfig,
     out_dir: Path,
     *,
     backend: Backend = "local",
     make_env: EnvFactory | None = None,
+    progress: bool = True,
 ) -> Path:
     """Trains the grid into ``out_dir`` and writes the table, figures and ``results.md``.
+
+    A run that raises is logged and left out; the rest of the grid still trains.
 
     Args:
         bench: the grid.
@@ -138,32 +156,98 @@ def run_bench(
         backend: ``local`` (process pool of ``bench.workers``; 1 = in this process) or ``ray``
             (one task per run on the cluster ``ray.init()`` connects to, e.g. RAY_ADDRESS).
         make_env: ``seed -> env`` factory (picklable); defaults to each run's sim4endor task.
+        progress: show a progress bar of the grid's runs (and, in this process, of each run).
 
     Returns:
         The path of ``results.md``.
+
+    Raises:
+        BenchRunError: after the report is written, when runs failed; it names them.
     """
     out_dir = Path(out_dir)
     start = time.monotonic()
+    runs = plan(bench)
     todo = [
         (config, out_dir / "runs" / name)
-        for name, config in plan(bench)
+        for name, config in runs
         if _final_evaluation(config, out_dir / "runs" / name) is None
     ]
-    if backend == "ray":
-        _run_ray(todo, make_env)
-    elif bench.workers <= 1:
-        for config, run_dir in todo:
-            _train_one(config, run_dir, make_env)
-    else:
-        context = multiprocessing.get_context("spawn")
-        with concurrent.futures.ProcessPoolExecutor(bench.workers, mp_context=context) as pool:
-            futures = [pool.submit(_train_one, c, d, make_env) for c, d in todo]
-            for future in concurrent.futures.as_completed(futures):
-                future.result()
-    return write_report(bench, out_dir, time.monotonic() - start, backend)
+    tracker = _GridProgress(len(runs), len(runs) - len(todo), progress)
+    with tracker:
+        if backend == "ray":
+            _run_ray(todo, make_env, tracker)
+        elif bench.workers <= 1:
+            for config, run_dir in todo:
+                tracker.finished(run_dir, _train_one(config, run_dir, make_env, progress))
+        else:
+            context = multiprocessing.get_context("spawn")
+            with concurrent.futures.ProcessPoolExecutor(bench.workers, mp_context=context) as pool:
+                futures = {
+                    pool.submit(_train_one, config, run_dir, make_env, False): run_dir
+                    for config, run_dir in todo
+                }
+                for future in concurrent.futures.as_completed(futures):
+                    tracker.finished(futures[future], future.result())
+    failures = tracker.failures
+    if len(failures) == len(runs):
+        raise BenchRunError(f"Every run of the bench failed: {_listing(failures)}")
+    path = write_report(bench, out_dir, time.monotonic() - start, backend)
+    if failures:
+        raise BenchRunError(
+            f"{len(failures)} of {len(runs)} runs failed (their logs say why; rerunning the "
+            f"bench retries them and skips the finished ones): {_listing(failures)}. "
+            f"The report of the others is {path}."
+        )
+    return path
 
 
-def _run_ray(todo: Sequence[tuple[TrainConfig, Path]], make_env: EnvFactory | None) -> None:
+def _listing(failures: Mapping[str, str]) -> str:
+    return "; ".join(f"{name} ({error})" for name, error in failures.items())
+
+
+class _GridProgress:
+    """A progress bar over the grid's runs, and a log line as each run ends."""
+
+    def __init__(self, total: int, done: int, enabled: bool) -> None:
+        self.total = total
+        self.done = done
+        self.failures: dict[str, str] = {}
+        self.bar = tqdm(total=total, initial=done, unit="run", desc="bench", disable=not enabled)
+        # Log lines go through the bar, so they do not tear it.
+        self._redirect = logging_redirect_tqdm()
+
+    def __enter__(self) -> _GridProgress:
+        self._redirect.__enter__()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.bar.close()
+        self._redirect.__exit__(*exc_info)
+
+    def finished(self, run_dir: Path, outcome: dict[str, Any] | str) -> None:
+        """Counts a run that ended: its final evaluation, or the error that ended it."""
+        self.done += 1
+        self.bar.update(1)
+        if isinstance(outcome, str):
+            self.failures[run_dir.name] = outcome
+            _LOG.error("run %s failed (%d/%d): %s", run_dir.name, self.done, self.total, outcome)
+            return
+        trials = outcome["trials"]
+        summary = f"{round(outcome['success_rate'] * trials)}/{trials} successes"
+        self.bar.set_postfix_str(f"{run_dir.name}: {summary}")
+        _LOG.info(
+            "run %s finished (%d/%d): %s, %.1f min",
+            run_dir.name,
+            self.done,
+            self.total,
+            summary,
+            outcome["train_wall_clock_s"] / 60,
+        )
+
+
+def _run_ray(
+    todo: Sequence[tuple[TrainConfig, Path]], make_env: EnvFactory | None, tracker: _GridProgress
+) -> None:
     try:
         import ray
     except ImportError as exc:
@@ -172,7 +256,10 @@ def _run_ray(todo: Sequence[tuple[TrainConfig, Path]], make_env: EnvFactory | No
         ) from exc
     ray.init(ignore_reinit_error=True)
     remote = ray.remote(num_cpus=1)(_train_one)
-    ray.get([remote.remote(config, run_dir, make_env) for config, run_dir in todo])
+    pending = {remote.remote(config, run_dir, make_env, False): run_dir for config, run_dir in todo}
+    while pending:
+        ready, _ = ray.wait(list(pending), num_returns=1)
+        tracker.finished(pending.pop(ready[0]), ray.get(ready[0]))
 
 
 def write_report(
