@@ -13,6 +13,7 @@ from navigation_helpers import require_vessel
 
 from sim4endor import suite
 from sim4endor.cli import render, view
+from sim4endor.errors import Sim4EndoRError
 
 
 @pytest.fixture(autouse=True)
@@ -52,6 +53,24 @@ def test_builtin_and_missing_policies() -> None:
         render.load_policy("no_such_policy.pt", 0)
     with pytest.raises(render.PolicyLoadError, match="expert needs the environment"):
         render.load_policy("expert", 0)
+
+
+def test_a_training_run_folder_is_a_policy(tmp_path: Path) -> None:
+    from rl_testing import tiny_config
+
+    from sim4endor.rl.export import export_policy
+    from sim4endor.rl.trainer import train
+
+    run_dir = tmp_path / "run"
+    train(tiny_config("ddpg", "collector.total_frames=100"), run_dir, progress=False)
+    policy = render.load_policy(str(run_dir), 0)
+    exported = render.load_policy(str(export_policy(run_dir, tmp_path / "export")[0]), 0)
+    observation = np.array([0.01, -0.02, 0.0, 0.001, 0.0, -0.002])
+    action = policy(observation)
+    assert action.shape == (2,) and np.all(np.abs(action) <= 1)
+    np.testing.assert_allclose(action, exported(observation), atol=1e-6)
+    with pytest.raises(Sim4EndoRError, match="not a training run folder"):
+        render.load_policy(str(tmp_path), 0)
 
 
 def test_expert_policy_acts_on_the_environment_not_the_observation() -> None:

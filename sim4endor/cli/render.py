@@ -9,6 +9,7 @@ step, the manifold distance D and the reward.
 from __future__ import annotations
 
 import argparse
+import itertools
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -26,6 +27,9 @@ if TYPE_CHECKING:
 Policy = Callable[[np.ndarray], np.ndarray]
 BUILTIN_POLICIES = ("insert", "random", "expert")
 TARGET_RGBA = np.array([0.1, 0.9, 0.2, 0.8], dtype=np.float32)
+#: The wire overlay of videos and figures: 0.5 mm radius, 3 px across at 640 px per phantom.
+WIRE_RADIUS = 0.5e-3
+WIRE_RGBA = np.array([0.35, 0.75, 1.0, 1.0], dtype=np.float32)
 
 
 class PolicyLoadError(Sim4EndoRError, ValueError):
@@ -38,9 +42,10 @@ def load_policy(spec: str, seed: int, env: NavigationEnvironment | None = None) 
     Args:
         spec: ``"insert"`` (push straight in), ``"random"`` (uniform actions), ``"expert"``
             (:class:`sim4endor.tasks.expert.CenterlineExpert`, which reads ``env``'s wire and
-            centerline rather than the observation) or the path of a TorchScript policy
-            exported by ``sim4endor.rl.export`` (observation (6,) float32 -> action (2,) in
-            [-1, 1]).
+            centerline rather than the observation), a training run folder (its latest
+            deterministic policy, as ``sim4endor evaluate`` runs it) or the path of a
+            TorchScript policy exported by ``sim4endor.rl.export`` (observation (6,) float32
+            -> action (2,) in [-1, 1]).
         seed: Seed of the random policy.
         env: The environment the policy acts in (needed by ``"expert"``).
     """
@@ -57,10 +62,12 @@ def load_policy(spec: str, seed: int, env: NavigationEnvironment | None = None) 
         rng = np.random.default_rng(seed)
         return lambda _obs: rng.uniform(-1.0, 1.0, size=2)
     path = Path(spec)
+    if path.is_dir():
+        return _run_policy(path)
     if not path.is_file():
         raise PolicyLoadError(
-            f"--policy {spec!r} is neither {list(BUILTIN_POLICIES)} nor an existing file; "
-            "export a trained run with sim4endor.rl.export (TorchScript .pt)."
+            f"--policy {spec!r} is neither {list(BUILTIN_POLICIES)}, a training run folder nor "
+            "an existing file; export a trained run with sim4endor.rl.export (TorchScript .pt)."
         )
     import torch
 
@@ -68,7 +75,20 @@ def load_policy(spec: str, seed: int, env: NavigationEnvironment | None = None) 
         module = torch.jit.load(str(path), map_location="cpu")
     except RuntimeError as exc:
         raise PolicyLoadError(f"{path} is not a TorchScript policy: {exc}") from None
-    module.eval()
+    return _torch_policy(module.eval())
+
+
+def _run_policy(run_dir: Path) -> Policy:
+    """The deterministic policy of a training run folder's latest checkpoint."""
+    from sim4endor.rl.export import deterministic_policy
+    from sim4endor.rl.runs import load_agent
+
+    config, agent = load_agent(run_dir)
+    return _torch_policy(deterministic_policy(config, agent))
+
+
+def _torch_policy(module: Callable[..., Any]) -> Policy:
+    import torch
 
     def act(observation: np.ndarray) -> np.ndarray:
         with torch.no_grad():
@@ -96,11 +116,33 @@ def add_sphere(scene: mujoco.MjvScene, position: np.ndarray, radius: float,
     )
 
 
+def add_wire(scene: mujoco.MjvScene, points: np.ndarray, radius: float, rgba: np.ndarray) -> None:
+    """Appends a visual-only capsule chain through ``points`` (the wire, drawn thicker).
+
+    The real wire (0.36 mm across) is about one pixel wide in a view of a whole phantom, and
+    the lumen surface in front of it dims it further; the overlay shows where it is.
+    """
+    import mujoco
+
+    scene = getattr(scene, "ptr", scene)
+    points = np.asarray(points, dtype=np.float64)
+    for start, end in itertools.pairwise(points):
+        if scene.ngeom >= scene.maxgeom:
+            return
+        scene.ngeom += 1
+        geom = scene.geoms[scene.ngeom - 1]
+        mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3),
+                            np.eye(3).ravel(), rgba)
+        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, radius, start, end)
+        geom.emission = 0.6  # bright through the translucent lumen whatever the lighting
+
+
 def top_down_pose(points: np.ndarray, fovy_deg: float = 45.0) -> dict[str, Any]:
     """Returns a free-camera pose looking down -z that frames ``points`` (m) with a margin."""
     low, high = points.min(axis=0), points.max(axis=0)
     half = 0.5 * float(np.max(high[:2] - low[:2]))
-    distance = 1.15 * half / np.tan(np.radians(fovy_deg) / 2) + float(high[2] - low[2])
+    # The frame is fitted at the top of the points' box, half their height above the centre.
+    distance = 1.15 * half / np.tan(np.radians(fovy_deg) / 2) + 0.5 * float(high[2] - low[2])
     return {"lookat": 0.5 * (low + high), "distance": distance, "azimuth": 90.0,
             "elevation": -90.0}
 
@@ -140,6 +182,7 @@ def render_episode(args: argparse.Namespace) -> int:
     timestep = env.reset()
 
     def mark_target(_physics: Any, scene: mujoco.MjvScene) -> None:
+        add_wire(scene, env.physics.wire_points(), WIRE_RADIUS, WIRE_RGBA)
         add_sphere(scene, env.task.target_position, 2.0e-3, TARGET_RGBA)
 
     camera = MovableCamera(env.physics, height=args.height, width=args.width,
@@ -177,7 +220,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("task", help="suite task, e.g. task_a")
     parser.add_argument("--policy", default="insert",
                         help="'insert', 'random', 'expert' (scripted, reads the wire and "
-                             "centerline) or an exported TorchScript policy (.pt)")
+                             "centerline), a training run folder (its latest policy) or an "
+                             "exported TorchScript policy (.pt)")
     parser.add_argument("--out", type=Path, default=Path("episode.mp4"), help="video file")
     parser.add_argument("--seed", type=int, default=0, help="task and random-policy seed")
     parser.add_argument("--reward", choices=("manifold", "euclidean"), default="manifold")
