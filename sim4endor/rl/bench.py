@@ -172,8 +172,11 @@ def run_bench(
         for name, config in runs
         if _final_evaluation(config, out_dir / "runs" / name) is None
     ]
-    tracker = _GridProgress(len(runs), len(runs) - len(todo), progress)
-    with tracker:
+    # Log lines go through the bar, so they do not tear it.
+    with (
+        logging_redirect_tqdm(),
+        _GridProgress(len(runs), len(runs) - len(todo), progress) as tracker,
+    ):
         if backend == "ray":
             _run_ray(todo, make_env, tracker)
         elif bench.workers <= 1:
@@ -213,16 +216,12 @@ class _GridProgress:
         self.done = done
         self.failures: dict[str, str] = {}
         self.bar = tqdm(total=total, initial=done, unit="run", desc="bench", disable=not enabled)
-        # Log lines go through the bar, so they do not tear it.
-        self._redirect = logging_redirect_tqdm()
 
     def __enter__(self) -> _GridProgress:
-        self._redirect.__enter__()
         return self
 
     def __exit__(self, *exc_info: object) -> None:
         self.bar.close()
-        self._redirect.__exit__(*exc_info)
 
     def finished(self, run_dir: Path, outcome: dict[str, Any] | str) -> None:
         """Counts a run that ended: its final evaluation, or the error that ended it."""
