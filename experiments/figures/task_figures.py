@@ -23,7 +23,7 @@ import imageio.v2 as imageio
 from dm_control.mujoco import MovableCamera
 
 from sim4endor import suite
-from sim4endor.cli.render import WIRE_RADIUS, WIRE_RGBA, add_sphere, add_wire, top_down_pose
+from sim4endor.cli.render import add_sphere, add_wire, top_down_pose
 from sim4endor.tasks import PixelsConfig
 
 TARGET_COLOURS = (np.array([0.1, 0.9, 0.2, 0.9], np.float32),
@@ -49,7 +49,7 @@ def figure(domain: str, task: str, kwargs: dict, steps: int, size: int) -> np.nd
                for name in sorted(vessel.targets)]
 
     def mark(_physics: object, scene: object) -> None:
-        add_wire(scene, env.physics.wire_points(), WIRE_RADIUS, WIRE_RGBA)
+        add_wire(scene, env.physics.wire_points())
         for k, point in enumerate(targets):
             add_sphere(scene, point, 2.5e-3, TARGET_COLOURS[k % len(TARGET_COLOURS)])
 

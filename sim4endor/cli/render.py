@@ -98,42 +98,46 @@ def _torch_policy(module: Callable[..., Any]) -> Policy:
     return act
 
 
-def add_sphere(scene: mujoco.MjvScene, position: np.ndarray, radius: float,
-               rgba: np.ndarray) -> None:
-    """Appends a visual-only sphere to an abstract scene (target marker)."""
+def _append_geom(scene: mujoco.MjvScene, kind: int, size: np.ndarray, position: np.ndarray,
+                 rgba: np.ndarray) -> mujoco.MjvGeom | None:
+    """Appends a visual-only geom to an abstract scene; None when the scene is full."""
     import mujoco
 
     # dm_control hands its wrapper of the scene; the viewer the raw mujoco.MjvScene.
     scene = getattr(scene, "ptr", scene)
     if scene.ngeom >= scene.maxgeom:
-        return
+        return None
     # Grow first: dm_control's scene wrapper only exposes geoms[:ngeom].
     scene.ngeom += 1
-    mujoco.mjv_initGeom(
-        scene.geoms[scene.ngeom - 1], mujoco.mjtGeom.mjGEOM_SPHERE,
-        np.array([radius, 0.0, 0.0]), np.asarray(position, dtype=np.float64),
-        np.eye(3).ravel(), rgba,
-    )
+    geom = scene.geoms[scene.ngeom - 1]
+    mujoco.mjv_initGeom(geom, kind, size, np.asarray(position, dtype=np.float64),
+                        np.eye(3).ravel(), rgba)
+    return geom
 
 
-def add_wire(scene: mujoco.MjvScene, points: np.ndarray, radius: float, rgba: np.ndarray) -> None:
-    """Appends a visual-only capsule chain through ``points`` (the wire, drawn thicker).
+def add_sphere(scene: mujoco.MjvScene, position: np.ndarray, radius: float,
+               rgba: np.ndarray) -> None:
+    """Appends a visual-only sphere to an abstract scene (target marker)."""
+    import mujoco
+
+    _append_geom(scene, mujoco.mjtGeom.mjGEOM_SPHERE, np.array([radius, 0.0, 0.0]), position,
+                 rgba)
+
+
+def add_wire(scene: mujoco.MjvScene, points: np.ndarray) -> None:
+    """Appends a visual-only capsule chain through the wire's ``points``, drawn thicker.
 
     The real wire (0.36 mm across) is about one pixel wide in a view of a whole phantom, and
     the lumen surface in front of it dims it further; the overlay shows where it is.
     """
     import mujoco
 
-    scene = getattr(scene, "ptr", scene)
-    points = np.asarray(points, dtype=np.float64)
-    for start, end in itertools.pairwise(points):
-        if scene.ngeom >= scene.maxgeom:
+    capsule = mujoco.mjtGeom.mjGEOM_CAPSULE
+    for start, end in itertools.pairwise(np.asarray(points, dtype=np.float64)):
+        geom = _append_geom(scene, capsule, np.zeros(3), np.zeros(3), WIRE_RGBA)
+        if geom is None:
             return
-        scene.ngeom += 1
-        geom = scene.geoms[scene.ngeom - 1]
-        mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3),
-                            np.eye(3).ravel(), rgba)
-        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_CAPSULE, radius, start, end)
+        mujoco.mjv_connector(geom, capsule, WIRE_RADIUS, start, end)
         geom.emission = 0.6  # bright through the translucent lumen whatever the lighting
 
 
@@ -182,7 +186,7 @@ def render_episode(args: argparse.Namespace) -> int:
     timestep = env.reset()
 
     def mark_target(_physics: Any, scene: mujoco.MjvScene) -> None:
-        add_wire(scene, env.physics.wire_points(), WIRE_RADIUS, WIRE_RGBA)
+        add_wire(scene, env.physics.wire_points())
         add_sphere(scene, env.task.target_position, 2.0e-3, TARGET_RGBA)
 
     camera = MovableCamera(env.physics, height=args.height, width=args.width,
