@@ -11,7 +11,7 @@ from tensordict import TensorDict
 
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.evaluation import EpisodeKeys, episode_from_rollout, success_fraction
-from sim4endor.rl.metrics import Episode, path_length, spl_term, summarize
+from sim4endor.rl.metrics import Episode, describe, path_length, spl_term, summarize
 from sim4endor.tasks import FAILURES
 from sim4endor.tasks.navigation import failure_code
 
@@ -34,8 +34,9 @@ def test_spl_term_rewards_short_successful_paths_only() -> None:
     assert spl_term(False, 0.1, 0.1) == 0.0
 
 
-def test_summarize_scripted_episodes() -> None:
-    episodes = [
+def _scripted_episodes() -> list[Episode]:
+    """Two successes, a tip-force stop and a timeout, with known lengths, times and forces."""
+    return [
         # Success straight to a target 0.1 m away in 5 s.
         Episode(_straight(0.1, 100), True, 5.0, np.array([0.1, 0.3]), 0.1),
         # Success after a detour: travelled 0.2 m for a 0.1 m shortest path, 7 s.
@@ -45,7 +46,10 @@ def test_summarize_scripted_episodes() -> None:
         # Neither: the step limit ended it.
         Episode(_straight(0.05, 20), False, 20.0, np.array([0.1]), 0.1),
     ]
-    metrics = summarize(episodes)
+
+
+def test_summarize_scripted_episodes() -> None:
+    metrics = summarize(_scripted_episodes())
     assert metrics["success_rate"] == pytest.approx(2 / 4)
     assert metrics["mean_completion_time_s"] == pytest.approx(6.0)  # failures do not count
     assert metrics["mean_path_length_m"] == pytest.approx((0.1 + 0.2 + 0.05 + 0.05) / 4)
@@ -54,6 +58,15 @@ def test_summarize_scripted_episodes() -> None:
     assert metrics["mean_return"] == pytest.approx(-100.0 / 4)
     assert metrics["outcomes"] == {"success": 2, "timeout": 1, "tip_force": 1}
     assert metrics["trials"] == 4
+
+
+def test_describe_gives_successes_other_outcomes_and_time_in_one_line() -> None:
+    text = describe(summarize(_scripted_episodes()))
+    assert text == "2/4 successes (timeout 1, tip_force 1), 6.00 s"
+    all_reached = summarize([Episode(_straight(0.1, 10), True, 3.0, np.zeros(10), 0.1)])
+    assert describe(all_reached) == "1/1 successes, 3.00 s"
+    none_reached = summarize([Episode(_straight(0.01, 3), False, 20.0, np.zeros(3), 0.1)])
+    assert describe(none_reached) == "0/1 successes (timeout 1)"
 
 
 def test_summarize_without_success_has_no_completion_time() -> None:

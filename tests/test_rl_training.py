@@ -4,6 +4,7 @@ determinism, checkpoints loadable with weights_only=True."""
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 
 import pytest
@@ -17,15 +18,23 @@ from sim4endor.rl.trainer import RunDirError, train
 
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_each_algorithm_trains_end_to_end(algorithm: str, tmp_path: Path) -> None:
+def test_each_algorithm_trains_end_to_end(
+    algorithm: str, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
     config = tiny_config(algorithm)
-    metrics = train(config, tmp_path, make_env=pendulum_env, progress=False)
+    with caplog.at_level(logging.INFO, logger="sim4endor.rl.trainer"):
+        metrics = train(config, tmp_path, make_env=pendulum_env, progress=False)
     assert metrics["frames"] == 200
     assert metrics["trials"] == 2
     assert (tmp_path / "config.yaml").is_file()
     assert json.loads((tmp_path / "evaluation.json").read_text()) == metrics
     evaluations = (tmp_path / "evaluations.jsonl").read_text().splitlines()
     assert [json.loads(line)["frames"] for line in evaluations] == [100, 200]
+    # Pendulum has no target: every evaluation episode runs to the step limit.
+    assert [r.getMessage() for r in caplog.records if "evaluation" in r.getMessage()] == [
+        f"{tmp_path.name}: evaluation at {frames}/200 frames: 0/2 successes (timeout 2)"
+        for frames in (100, 200)
+    ]
     scalars = tmp_path / "logs" / "scalars"
     assert (scalars / "eval" / "success_rate.csv").is_file()
     assert (scalars / "train" / "reward.csv").is_file()

@@ -30,6 +30,7 @@ from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl import checkpoint
 from sim4endor.rl.config import ALGORITHMS, TrainConfig, apply_overrides, default_config
 from sim4endor.rl.envs import EnvFactory
+from sim4endor.rl.metrics import describe
 from sim4endor.rl.plots import learning_curve_figure, scalar_names
 from sim4endor.rl.runs import read_evaluation
 from sim4endor.rl.table import RunResult, markdown_table, per_run_table
@@ -174,7 +175,7 @@ def run_bench(
     ]
     # Log lines go through the bar, so they do not tear it.
     with (
-        logging_redirect_tqdm(),
+        logging_redirect_tqdm(tqdm_class=tqdm),
         _GridProgress(len(runs), len(runs) - len(todo), progress) as tracker,
     ):
         if backend == "ray":
@@ -231,8 +232,7 @@ class _GridProgress:
             self.failures[run_dir.name] = outcome
             _LOG.error("run %s failed (%d/%d): %s", run_dir.name, self.done, self.total, outcome)
             return
-        trials = outcome["trials"]
-        summary = f"{round(outcome['success_rate'] * trials)}/{trials} successes"
+        summary = describe(outcome)
         self.bar.set_postfix_str(f"{run_dir.name}: {summary}")
         _LOG.info(
             "run %s finished (%d/%d): %s, %.1f min",

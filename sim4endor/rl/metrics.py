@@ -18,7 +18,8 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -117,3 +118,20 @@ def summarize(episodes: Sequence[Episode]) -> dict[str, float | int | dict[str, 
 def is_missing(value: float | int | None) -> bool:
     """True for a metric that could not be computed (None or NaN)."""
     return value is None or (isinstance(value, float) and math.isnan(value))
+
+
+def other_outcomes(outcomes: Mapping[str, int]) -> str:
+    """The outcomes other than success, e.g. ``timeout 6, tip_force 2``; "none" if all succeeded."""
+    others = [f"{name} {count}" for name, count in outcomes.items() if name != "success"]
+    return ", ".join(others) or "none"
+
+
+def describe(metrics: Mapping[str, Any]) -> str:
+    """:func:`summarize`'s result in a log line: ``6/10 successes (timeout 4), 3.42 s``."""
+    trials = metrics["trials"]
+    text = f"{round(metrics['success_rate'] * trials)}/{trials} successes"
+    if metrics["success_rate"] < 1.0:
+        text += f" ({other_outcomes(metrics['outcomes'])})"
+    if not is_missing(metrics["mean_completion_time_s"]):
+        text += f", {metrics['mean_completion_time_s']:.2f} s"
+    return text

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from sim4endor.rl.config import TrainConfig
+from sim4endor.rl.metrics import other_outcomes
 from sim4endor.rl.runs import read_evaluation, run_config
 from sim4endor.rl.trainer import CONFIG_FILE
 
@@ -140,7 +141,8 @@ def per_run_table(evaluations: Sequence[tuple[str, dict[str, Any]]]) -> str:
         cells = [
             name,
             f"{successes}/{trials}",
-            _outcomes(ev.get("outcomes")),
+            # "–": an evaluation written before outcomes were counted.
+            "–" if ev.get("outcomes") is None else other_outcomes(ev["outcomes"]),
             _number(ev.get("mean_completion_time_s"), "{:.2f}"),
             _number(ev.get("mean_path_length_m"), "{:.1f}", 1e3),
             _number(ev.get("spl"), "{:.2f}"),
@@ -149,14 +151,6 @@ def per_run_table(evaluations: Sequence[tuple[str, dict[str, Any]]]) -> str:
         ]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
-
-
-def _outcomes(outcomes: dict[str, int] | None) -> str:
-    """E.g. ``timeout 6, tip_force 2``; "–" when the evaluation predates outcome counts."""
-    if outcomes is None:
-        return "–"
-    others = [f"{name} {count}" for name, count in outcomes.items() if name != "success"]
-    return ", ".join(others) or "none"
 
 
 def _number(value: float | None, fmt: str, scale: float = 1.0) -> str:

@@ -30,6 +30,7 @@ from torchrl.collectors import Collector, MultiSyncCollector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.record.loggers import Logger
 from tqdm.auto import tqdm
+from tqdm.contrib.logging import logging_redirect_tqdm
 
 from sim4endor._atomic import atomic_write_text
 from sim4endor.errors import Sim4EndoRError
@@ -38,7 +39,7 @@ from sim4endor.rl.algorithms import Agent, build_agent
 from sim4endor.rl.config import TrainConfig, load_config, save_config, to_dict
 from sim4endor.rl.envs import EnvFactory, env_factory
 from sim4endor.rl.evaluation import EpisodeKeys, rollout_episodes, success_fraction
-from sim4endor.rl.metrics import Episode, summarize
+from sim4endor.rl.metrics import Episode, describe, summarize
 
 _LOG = logging.getLogger(__name__)
 
@@ -234,16 +235,18 @@ class _Loop:
             unit="frames",
             desc=f"{cfg.algorithm} {cfg.env.domain}/{cfg.env.task}",
         )
+        # Log lines (each periodic evaluation) go through the bar, so they do not tear it.
         try:
-            self.clock = time.monotonic()
-            for batch in collector:
-                frames = state.frames + batch.numel()
-                state = self._learn(batch, state, frames)
-                collector.update_policy_weights_()
-                stats = self._log_batch(batch, state)
-                bar.update(batch.numel())
-                bar.set_postfix(stats)
-                self._periodic(state, frames - batch.numel())
+            with logging_redirect_tqdm(tqdm_class=tqdm):
+                self.clock = time.monotonic()
+                for batch in collector:
+                    frames = state.frames + batch.numel()
+                    state = self._learn(batch, state, frames)
+                    collector.update_policy_weights_()
+                    stats = self._log_batch(batch, state)
+                    bar.update(batch.numel())
+                    bar.set_postfix(stats)
+                    self._periodic(state, frames - batch.numel())
         finally:
             collector.shutdown()
             bar.close()
@@ -332,6 +335,14 @@ class _Loop:
             keys=self.keys,
         )
         metrics = evaluation_record(state, episodes)
+        # A headless job's log gets a readable line per evaluation beside the progress bar.
+        _LOG.info(
+            "%s: evaluation at %d/%d frames: %s",
+            self.run_dir.name,
+            state.frames,
+            cfg.collector.total_frames,
+            describe(metrics),
+        )
         if self.logger is not None:
             for key, value in metrics.items():
                 if key == "outcomes":  # counts per outcome: one curve each
