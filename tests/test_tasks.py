@@ -9,6 +9,7 @@ import pytest
 from navigation_helpers import require_vessel
 
 from sim4endor import suite
+from sim4endor.rewards import RewardConfig
 from sim4endor.tasks import (
     InitialStateConfig,
     InvalidActionError,
@@ -105,6 +106,23 @@ def test_failure_states_terminate_with_the_penalty(
     assert last.last() and last.discount == 0.0
     assert info["failure"] == reason and not info["is_success"]
     assert last.reward == pytest.approx(-100.0 + info["reward_distance"])
+
+
+def test_a_failure_on_the_step_that_reaches_the_target_is_not_a_success() -> None:
+    # Every tip is "at the target" (success within 1 m) and the first roll breaks the rotation
+    # limit: the failure wins, as a tip pressing the wall past the limit at the target is harm.
+    env = suite.load(
+        "simplified_phantom",
+        "task_a",
+        {
+            "reward": RewardConfig(success_distance=1.0),
+            "termination": TerminationConfig(max_rotation=0.01),
+        },
+    )
+    last = _run(env, [np.array([0.0, 1.0])])[-1]
+    info = env.task.step_info()
+    assert last.last() and info["failure"] == "rotation_limit" and not info["is_success"]
+    assert info["reward_goal"] == 0.0 and info["reward_failure"] == -100.0
 
 
 def test_instability_is_a_failure_not_a_crash() -> None:
