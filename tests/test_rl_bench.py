@@ -21,6 +21,7 @@ from sim4endor.rl.bench import (
     run_bench,
     write_report,
 )
+from sim4endor.rl.table import Cell, Reference
 from sim4endor.rl.trainer import EVAL_SEED_OFFSET
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
@@ -43,8 +44,15 @@ def test_shipped_bench_configs_plan_the_papers_grids() -> None:
     assert runs[0][0] == "ddpg-manifold-simplified_phantom-task_a-s0"
     assert {c.env.reward for _, c in runs if c.algorithm == "ddpg"} == {"manifold", "euclidean"}
     assert all(c.collector.total_frames == 100_000 and c.eval.trials == 10 for _, c in runs)
-    complex_runs = plan(load_bench_config(EXPERIMENTS / "bench" / "complex_phantom.yaml"))
+    # The paper's figures to print beside ours: Table I's eight cells, the complex phantom's two.
+    assert table1.reference is not None and len(table1.reference.cells) == 8
+    paper_ddpg_a = table1.reference.cells[("ddpg", "euclidean", "simplified_phantom", "task_a")]
+    assert (paper_ddpg_a.successes, paper_ddpg_a.trials) == (3, 10)
+    complex_bench = load_bench_config(EXPERIMENTS / "bench" / "complex_phantom.yaml")
+    complex_runs = plan(complex_bench)
     assert {c.env.domain for _, c in complex_runs} == {"vascular_phantom"}
+    assert complex_bench.reference is not None
+    assert {k[2:] for k in complex_bench.reference.cells} == set(complex_bench.tasks)
 
 
 @pytest.mark.parametrize(
@@ -53,6 +61,23 @@ def test_shipped_bench_configs_plan_the_papers_grids() -> None:
         ({"rows": [], "tasks": [], "seed": [1]}, "unknown keys"),
         ({"rows": [{"algorithm": "ddpg"}], "tasks": []}, "'rows' must list"),
         ({"rows": [{"algorithm": "a2c", "reward": "manifold"}], "tasks": []}, "unknown algorithm"),
+        ({"rows": [], "tasks": [], "reference": {"cells": []}}, "'reference' must have a 'label'"),
+        (
+            {"rows": [], "tasks": [], "reference": {"label": "x", "cells": [{"task": "t"}]}},
+            "'reference' must have",
+        ),
+        (
+            {
+                "rows": [],
+                "tasks": [],
+                "reference": {
+                    "label": "x",
+                    "cells": [{"algorithm": "ddpg", "reward": "manifold", "domain": "d",
+                               "task": "t", "successes": 11, "trials": 10}],
+                },
+            },
+            "reference cell ddpg/manifold/d/t: successes must lie in 0..trials",
+        ),
     ],
 )
 def test_bad_bench_configs_name_the_problem(data: dict, message: str) -> None:
@@ -93,6 +118,19 @@ def test_report_of_an_unfinished_grid_names_the_missing_runs(tmp_path: Path) -> 
     with pytest.raises(Sim4EndoRError, match="No run"):
         write_report(longer, tmp_path, None, "local")
     assert "this invocation" not in text  # only the report was written
+
+
+def test_report_prints_the_published_reference_under_its_row(tmp_path: Path) -> None:
+    bench = dataclasses.replace(_tiny_bench(), rows=(("ppo", "manifold"),))
+    run_bench(bench, tmp_path, make_env=pendulum_env)
+    paper = Reference("paper (Table I)", {
+        ("ppo", "manifold", "simplified_phantom", "task_a"): Cell(10, 7, 5.43, None),
+    })
+    text = write_report(dataclasses.replace(bench, reference=paper), tmp_path, None, "local")
+    table = (tmp_path / "table.md").read_text()
+    assert "| ↳ paper (Table I) | 10 | 70% (7/10) | 5.43 |" in table
+    assert table in text.read_text()
+    assert "↳ rows: paper (Table I)" in text.read_text()
 
 
 def _pendulum_failing_seed_1(seed: int) -> EnvBase:

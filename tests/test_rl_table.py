@@ -9,7 +9,7 @@ import pytest
 
 from sim4endor.cli import main
 from sim4endor.rl.config import apply_overrides, default_config, save_config
-from sim4endor.rl.table import RunResult, markdown_table, per_run_table, pool
+from sim4endor.rl.table import Cell, Reference, RunResult, markdown_table, per_run_table, pool
 
 
 def _result(algorithm: str, reward: str, task: str, seed: int, successes: int, time: float | None):
@@ -39,6 +39,28 @@ def test_markdown_table_rows_and_cells() -> None:
     assert lines[2].startswith("| DDPG (manifold distance reward) | 10 (1) | 80% (8/10) | 5.27 |")
     assert lines[2].endswith("| 10 (1) | 0% (0/10) | – |")
     assert "| DDPG (euclidean distance reward) | 10 (1) | 30% (3/10) | 5.39 | – | – | – |" in lines
+
+
+def test_reference_rows_sit_under_their_measured_rows() -> None:
+    results = [
+        _result("ddpg", "manifold", "task_a", 0, 9, 3.1),
+        _result("ddpg", "manifold", "task_b", 0, 10, 3.0),
+        _result("ppo", "manifold", "task_a", 0, 10, 3.2),
+    ]
+    reference = Reference(
+        "paper (Table I)",
+        {
+            ("ddpg", "manifold", "simplified_phantom", "task_a"): Cell(10, 8, 5.27, None),
+            ("ddpg", "euclidean", "simplified_phantom", "task_a"): Cell(10, 3, 5.39, None),
+        },
+    )
+    lines = markdown_table(results, reference).splitlines()
+    assert len(lines) == 2 + 3  # two measured rows, one published row (PPO has none)
+    assert lines[2].startswith("| DDPG (manifold distance reward) | 10 (1) | 90% (9/10) |")
+    # Published cells show their trials without a seed count; unreported cells are dashes.
+    assert lines[3] == "| ↳ paper (Table I) | 10 | 80% (8/10) | 5.27 | – | – | – |"
+    assert lines[4].startswith("| PPO (manifold distance reward) |")
+    assert markdown_table(results) == markdown_table(results, None)
 
 
 def _fake_run(run_dir: Path, algorithm: str, seed: int, success_rate: float) -> None:

@@ -1,7 +1,8 @@
 """The headless benchmark job: a grid of training runs, Table I and learning curves.
 
 A bench config (YAML) lists the rows (algorithm × reward), the tasks, the seeds and config
-overrides applied to every run. :func:`run_bench` trains every grid point into
+overrides applied to every run, and optionally a published ``reference`` (e.g. the paper's
+Table I) to print beside the measured cells. :func:`run_bench` trains every grid point into
 ``OUT/runs/<algorithm>-<reward>-<domain>-<task>-s<seed>/`` with a local process pool (or on a
 Ray cluster), skipping runs that already finished and resuming interrupted ones, then writes
 ``OUT/table.md``, ``OUT/figures/*.png`` (success rate and each reward term vs frames) and
@@ -33,7 +34,7 @@ from sim4endor.rl.envs import EnvFactory
 from sim4endor.rl.metrics import describe
 from sim4endor.rl.plots import learning_curve_figure, scalar_names
 from sim4endor.rl.runs import read_evaluation
-from sim4endor.rl.table import RunResult, markdown_table, per_run_table
+from sim4endor.rl.table import Cell, Reference, RunResult, markdown_table, per_run_table
 from sim4endor.rl.trainer import train
 
 Backend = Literal["local", "ray"]
@@ -55,6 +56,8 @@ class BenchConfig:
         seeds: training seeds of every (row, task).
         overrides: ``section.field=value`` strings applied to every run's config.
         workers: parallel runs of the local process pool.
+        reference: published results shown under the measured rows of the table (transcribed
+            into the config, never measured here).
     """
 
     rows: tuple[tuple[str, str], ...]
@@ -62,10 +65,11 @@ class BenchConfig:
     seeds: tuple[int, ...] = (0, 1, 2)
     overrides: tuple[str, ...] = ()
     workers: int = 2
+    reference: Reference | None = None
 
 
 def load_bench_config(path: Path) -> BenchConfig:
-    """Reads a bench YAML file (keys: rows, tasks, seeds, overrides, workers)."""
+    """Reads a bench YAML file (keys: rows, tasks, seeds, overrides, workers, reference)."""
     try:
         data = yaml.safe_load(Path(path).read_text()) or {}
     except (OSError, yaml.YAMLError) as exc:
@@ -96,7 +100,36 @@ def bench_config_from_dict(data: Mapping[str, Any], *, source: str = "bench") ->
         seeds=tuple(int(s) for s in data.get("seeds", (0, 1, 2))),
         overrides=tuple(str(o) for o in data.get("overrides", ())),
         workers=int(data.get("workers", 2)),
+        reference=_reference(data.get("reference"), source),
     )
+
+
+def _reference(data: Any, source: str) -> Reference | None:
+    """The ``reference`` mapping: a label and cells of published successes/trials (time_s)."""
+    if data is None:
+        return None
+    try:
+        cells = {
+            (str(c["algorithm"]), str(c["reward"]), str(c["domain"]), str(c["task"])): Cell(
+                trials=int(c["trials"]),
+                successes=int(c["successes"]),
+                mean_completion_time_s=None if c.get("time_s") is None else float(c["time_s"]),
+                seeds=None,
+            )
+            for c in data["cells"]
+        }
+        reference = Reference(label=str(data["label"]), cells=cells)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise BenchConfigError(
+            f"{source}: 'reference' must have a 'label' and 'cells' of {{algorithm, reward, "
+            f"domain, task, successes, trials, time_s (optional)}} ({exc!r})."
+        ) from exc
+    for key, cell in cells.items():
+        if not 0 <= cell.successes <= cell.trials:
+            raise BenchConfigError(
+                f"{source}: reference cell {'/'.join(key)}: successes must lie in 0..trials."
+            )
+    return reference
 
 
 def plan(bench: BenchConfig) -> list[tuple[str, TrainConfig]]:
@@ -283,7 +316,7 @@ def write_report(
         evaluations.append((run_dir.name, evaluation))
     if not results:
         raise Sim4EndoRError(f"No run of the bench under {out_dir} has an evaluation yet.")
-    table = markdown_table(results)
+    table = markdown_table(results, bench.reference)
     atomic_write_text(out_dir / "table.md", table)
     figures = []
     for domain, task in bench.tasks:
@@ -338,7 +371,13 @@ def _results_markdown(
         report.table,
         "Success rate: successful evaluation episodes / trials, pooled over seeds. Time: mean "
         "simulated procedure time of the successful episodes. Each run is evaluated with its "
-        "final policy.",
+        "final policy."
+        + (
+            f" ↳ rows: {bench.reference.label}, as transcribed in the bench config's "
+            "`reference` (published, not measured here)."
+            if bench.reference
+            else ""
+        ),
         "",
         "## Every run",
         "",

@@ -9,7 +9,7 @@ number of successes).
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -52,12 +52,29 @@ class RunResult:
 
 @dataclasses.dataclass(frozen=True)
 class Cell:
-    """Pooled result of one (row, task) over seeds."""
+    """Pooled result of one (row, task) over seeds (``seeds`` None: not reported)."""
 
     trials: int
     successes: int
     mean_completion_time_s: float | None
-    seeds: int
+    seeds: int | None
+
+
+CellKey = tuple[str, str, str, str]
+"""(algorithm, reward, domain, task) of a table cell."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Reference:
+    """Published results printed under the measured rows, e.g. the paper's Table I.
+
+    Attributes:
+        label: names the source in the table, e.g. ``paper (Table I)``.
+        cells: the published cell of each (algorithm, reward, domain, task) it reports.
+    """
+
+    label: str
+    cells: Mapping[CellKey, Cell]
 
 
 def find_runs(paths: Iterable[Path]) -> list[Path]:
@@ -96,8 +113,11 @@ def row_label(algorithm: str, reward: str) -> str:
     return f"{_ALGORITHM_NAMES.get(algorithm, algorithm.upper())} ({reward} distance reward)"
 
 
-def markdown_table(results: Sequence[RunResult]) -> str:
-    """Table I as GitHub markdown: one row per (algorithm, reward), three columns per task."""
+def markdown_table(results: Sequence[RunResult], reference: Reference | None = None) -> str:
+    """Table I as GitHub markdown: one row per (algorithm, reward), three columns per task.
+
+    With a ``reference``, a row ``↳ LABEL`` under each measured row shows its published cells.
+    """
     rows = list(dict.fromkeys((r.algorithm, r.reward) for r in results))
     tasks = list(dict.fromkeys((r.domain, r.task) for r in results))
     header = ["Algorithm"]
@@ -115,6 +135,15 @@ def markdown_table(results: Sequence[RunResult]) -> str:
             ]
             cells += _format_cell(pool(group)) if group else ["–", "–", "–"]
         lines.append("| " + " | ".join(cells) + " |")
+        published = [
+            reference.cells.get((algorithm, reward, domain, task)) if reference else None
+            for domain, task in tasks
+        ]
+        if reference and any(published):
+            cells = [f"↳ {reference.label}"]
+            for cell in published:
+                cells += _format_cell(cell) if cell else ["–", "–", "–"]
+            lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -122,7 +151,7 @@ def _format_cell(cell: Cell) -> list[str]:
     rate = cell.successes / cell.trials if cell.trials else 0.0
     time = "–" if cell.mean_completion_time_s is None else f"{cell.mean_completion_time_s:.2f}"
     return [
-        f"{cell.trials} ({cell.seeds})",
+        f"{cell.trials}" if cell.seeds is None else f"{cell.trials} ({cell.seeds})",
         f"{rate:.0%} ({cell.successes}/{cell.trials})",
         time,
     ]
