@@ -80,6 +80,21 @@ def test_table_command_finds_runs_below_a_folder(tmp_path: Path, capsys) -> None
     assert (tmp_path / "table.md").read_text() == printed
 
 
+def test_table_command_prints_the_papers_cells_from_a_bench_config(
+    tmp_path: Path, capsys
+) -> None:
+    _fake_run(tmp_path / "sac-0", "sac", 0, 0.9)
+    bench = Path(__file__).resolve().parents[1] / "experiments" / "bench" / "table1.yaml"
+    assert main(["table", str(tmp_path), "--reference", str(bench)]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[2] == "| SAC (manifold distance reward) | 10 (1) | 90% (9/10) | 6.00 |"
+    assert printed[3] == "| ↳ paper (Table I) | 10 | 80% (8/10) | 5.69 |"
+    bare = tmp_path / "grid.yaml"
+    bare.write_text("rows: []\ntasks: []\n")
+    assert main(["table", str(tmp_path), "--reference", str(bare)]) == 2
+    assert f"{bare} has no 'reference' section" in capsys.readouterr().err
+
+
 def test_table_command_without_runs_is_a_one_line_error(tmp_path: Path, capsys) -> None:
     assert main(["table", str(tmp_path)]) == 2
     assert "No evaluated runs" in capsys.readouterr().err

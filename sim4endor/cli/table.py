@@ -19,6 +19,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("paths", type=Path, nargs="+", help="run folders or folders of runs")
     parser.add_argument("--out", type=Path, help="also write the table to this file")
+    parser.add_argument(
+        "--reference",
+        type=Path,
+        metavar="BENCH_YAML",
+        help="print the published cells of this bench config's `reference` under the measured "
+        "rows (experiments/bench/table1.yaml holds the paper's Table I)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -26,15 +33,21 @@ def run(args: argparse.Namespace) -> int:
     """Prints (and optionally writes) the table."""
     from sim4endor._atomic import atomic_write_text
     from sim4endor.errors import Sim4EndoRError
+    from sim4endor.rl.bench import BenchConfigError, load_bench_config
     from sim4endor.rl.table import collect_results, find_runs, markdown_table
 
+    reference = None
+    if args.reference:
+        reference = load_bench_config(args.reference).reference
+        if reference is None:
+            raise BenchConfigError(f"{args.reference} has no 'reference' section.")
     results = collect_results(find_runs(args.paths))
     if not results:
         raise Sim4EndoRError(
             f"No evaluated runs under {[str(p) for p in args.paths]}: train with `sim4endor "
             "train` (or evaluate with `sim4endor evaluate RUN_DIR`) first."
         )
-    table = markdown_table(results)
+    table = markdown_table(results, reference)
     if args.out:
         atomic_write_text(args.out, table)
     print(table, end="")  # noqa: T201
