@@ -78,6 +78,18 @@ def test_shipped_bench_configs_plan_the_papers_grids() -> None:
             },
             "reference cell ddpg/manifold/d/t: successes must lie in 0..trials",
         ),
+        (
+            {
+                "rows": [],
+                "tasks": [],
+                "reference": {
+                    "label": "x",
+                    "cells": [{"algorithm": "ddpg", "reward": "manifold", "domain": "d",
+                               "task": "t", "successes": 1, "trials": 10, "time": 5.0}],
+                },
+            },
+            r"unknown keys \['time'\]",
+        ),
     ],
 )
 def test_bad_bench_configs_name_the_problem(data: dict, message: str) -> None:

@@ -104,11 +104,15 @@ def bench_config_from_dict(data: Mapping[str, Any], *, source: str = "bench") ->
     )
 
 
+_REFERENCE_CELL_KEYS = {"algorithm", "reward", "domain", "task", "successes", "trials", "time_s"}
+
+
 def _reference(data: Any, source: str) -> Reference | None:
     """The ``reference`` mapping: a label and cells of published successes/trials (time_s)."""
     if data is None:
         return None
     try:
+        label, entries = str(data["label"]), list(data["cells"])
         cells = {
             (str(c["algorithm"]), str(c["reward"]), str(c["domain"]), str(c["task"])): Cell(
                 trials=int(c["trials"]),
@@ -116,20 +120,27 @@ def _reference(data: Any, source: str) -> Reference | None:
                 mean_completion_time_s=None if c.get("time_s") is None else float(c["time_s"]),
                 seeds=None,
             )
-            for c in data["cells"]
+            for c in entries
         }
-        reference = Reference(label=str(data["label"]), cells=cells)
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise BenchConfigError(
             f"{source}: 'reference' must have a 'label' and 'cells' of {{algorithm, reward, "
             f"domain, task, successes, trials, time_s (optional)}} ({exc!r})."
         ) from exc
+    for entry in entries:
+        # A misspelt key (e.g. `time`) would otherwise drop its value without a word.
+        unknown = sorted(set(entry) - _REFERENCE_CELL_KEYS)
+        if unknown:
+            raise BenchConfigError(
+                f"{source}: reference cell {entry}: unknown keys {unknown}; "
+                f"valid: {sorted(_REFERENCE_CELL_KEYS)}."
+            )
     for key, cell in cells.items():
         if not 0 <= cell.successes <= cell.trials:
             raise BenchConfigError(
                 f"{source}: reference cell {'/'.join(key)}: successes must lie in 0..trials."
             )
-    return reference
+    return Reference(label, cells)
 
 
 def plan(bench: BenchConfig) -> list[tuple[str, TrainConfig]]:
