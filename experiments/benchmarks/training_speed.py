@@ -30,8 +30,9 @@ from sim4endor.rl.trainer import _replay_buffer, make_collector
 _BATCH = 200
 
 
-def env_steps_per_s(config: TrainConfig, frames: int) -> float:
-    """Environment steps/s of the trainer's collector under the exploration policy."""
+def env_steps_per_s(config: TrainConfig, env, frames: int) -> float:
+    """Environment steps/s of the trainer's collector under the exploration policy
+    (``env`` gives the specs of the policy; the collector builds its own environments)."""
     batches = max(frames // _BATCH, 1)
     config = dataclasses.replace(
         config,
@@ -40,11 +41,8 @@ def env_steps_per_s(config: TrainConfig, frames: int) -> float:
             init_random_frames=0,
         ),
     )
-    make_env = env_factory(config.env)
-    probe = make_env(config.seed)
-    agent = build_agent(config, probe.observation_spec, probe.action_spec)
-    probe.close()
-    collector = make_collector(config, make_env, agent, frames_done=0)
+    agent = build_agent(config, env.observation_spec, env.action_spec)
+    collector = make_collector(config, env_factory(config.env), agent, frames_done=0)
     start = 0.0
     try:
         for index, _ in enumerate(collector):
@@ -94,13 +92,13 @@ def main() -> None:
     env_config = dataclasses.replace(
         base.env, domain=args.domain, task=args.task, num_envs=args.envs
     )
-    env_rate = env_steps_per_s(dataclasses.replace(base, env=env_config), args.frames)
+    env = env_factory(env_config)(0)
+    env_rate = env_steps_per_s(dataclasses.replace(base, env=env_config), env, args.frames)
     report = {
         "load_average_1min": os.getloadavg()[0],
         "envs": args.envs,
         "env_steps_per_s": round(env_rate, 1),
     }
-    env = env_factory(env_config)(0)
     for algorithm in ALGORITHMS:
         config = default_config(algorithm)
         rate = gradient_steps_per_s(config, env, args.updates)

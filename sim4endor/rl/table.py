@@ -124,7 +124,7 @@ def markdown_table(results: Sequence[RunResult], reference: Reference | None = N
     for domain, task in tasks:
         name = f"{domain} {task}"
         header += [f"{name}: trials (seeds)", f"{name}: success rate", f"{name}: time (s)"]
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines = [_markdown_row(header), "|" + "---|" * len(header)]
     for algorithm, reward in rows:
         cells = [row_label(algorithm, reward)]
         for domain, task in tasks:
@@ -134,7 +134,7 @@ def markdown_table(results: Sequence[RunResult], reference: Reference | None = N
                 if (r.algorithm, r.reward, r.domain, r.task) == (algorithm, reward, domain, task)
             ]
             cells += _format_cell(pool(group)) if group else ["–", "–", "–"]
-        lines.append("| " + " | ".join(cells) + " |")
+        lines.append(_markdown_row(cells))
         published = [
             reference.cells.get((algorithm, reward, domain, task)) if reference else None
             for domain, task in tasks
@@ -143,8 +143,12 @@ def markdown_table(results: Sequence[RunResult], reference: Reference | None = N
             cells = [f"↳ {reference.label}"]
             for cell in published:
                 cells += _format_cell(cell) if cell else ["–", "–", "–"]
-            lines.append("| " + " | ".join(cells) + " |")
+            lines.append(_markdown_row(cells))
     return "\n".join(lines) + "\n"
+
+
+def _markdown_row(cells: Sequence[str]) -> str:
+    return "| " + " | ".join(cells) + " |"
 
 
 def _format_cell(cell: Cell) -> list[str]:
@@ -178,7 +182,7 @@ def per_run_table(evaluations: Sequence[tuple[str, dict[str, Any]]]) -> str:
             _number(ev.get("max_wall_force_n"), "{:.2f}"),
             _number(ev.get("train_wall_clock_s"), "{:.1f}", 1 / 60),
         ]
-        lines.append("| " + " | ".join(cells) + " |")
+        lines.append(_markdown_row(cells))
     return "\n".join(lines) + "\n"
 
 
