@@ -83,7 +83,10 @@ def test_curvature_weight_lengthens_curved_paths_only(graph: CenterlineGraph) ->
     bent_a = rewards.make_distance(rewards.RewardConfig(curvature_weight=50.0), graph, "A")
     plain_a = rewards.make_distance(rewards.RewardConfig(), graph, "A")
     assert bent_b(inlet) > plain_b(inlet) * 1.01  # branch B is curved
-    assert bent_a(inlet) == pytest.approx(plain_a(inlet), rel=1e-9)  # trunk and A are straight
+    # Trunk and A are straight: their turn angles are rounding errors of the node coordinates
+    # (~1e-16 rad with atan2), which weigh in at w·κ·r ~ 1e-14 of the length; 1e-12 bounds that
+    # on any machine.
+    assert bent_a(inlet) == pytest.approx(plain_a(inlet), rel=1e-12)
 
 
 def test_bad_configuration_names_the_setting(graph: CenterlineGraph) -> None:

@@ -170,7 +170,10 @@ class CenterlineGraph:
             nu, nv = np.linalg.norm(u), np.linalg.norm(v)
             if nu == 0 or nv == 0:
                 continue
-            turn = np.arccos(np.clip(np.dot(u, v) / (nu * nv), -1.0, 1.0))
+            # atan2(|u x v|, u.v), not arccos of the cosine: arccos is ill-conditioned near 0,
+            # where a rounding error of 1e-16 in the cosine gives a turn of ~1e-8 rad on a
+            # straight line; atan2 keeps the turn's relative error at rounding level.
+            turn = np.arctan2(np.linalg.norm(np.cross(u, v)), np.dot(u, v))
             curvature[k] = turn / (0.5 * (nu + nv))
         return curvature
 
