@@ -7,10 +7,9 @@ from pathlib import Path
 
 import pytest
 
-# Tests render offscreen; pick OSMesa before dm_control is imported, as the CLI does when
-# there is no display (dm_control's default GLFW backend warns and cannot render headless).
-if not os.environ.get("DISPLAY"):
-    os.environ.setdefault("MUJOCO_GL", "osmesa")
+# Importing sim4endor before any test imports MuJoCo picks a headless GL backend (OSMesa when
+# installed) where there is no display, as it does for users (sim4endor._gl).
+import sim4endor  # noqa: F401
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 # ../shared sits beside the checkout (see DEVELOPERS.md); SIM4ENDOR_SHARED overrides it.

@@ -2,7 +2,7 @@
 
 Each subcommand lives in its own module of this package and exposes
 ``register(subparsers)``, which adds its parser and sets ``func`` to a handler taking the
-parsed arguments and returning an exit status.
+parsed arguments and returning an exit status, and ``renders=True`` if it draws with OpenGL.
 """
 
 from __future__ import annotations
@@ -10,26 +10,16 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
-import os
 import sys
 from collections.abc import Sequence
 
+from sim4endor import _gl
 from sim4endor.errors import Sim4EndoRError
 
 # Subcommand modules, imported lazily so `sim4endor --help` stays fast.
 _SUBCOMMAND_MODULES: tuple[str, ...] = (
     "vessel", "train", "evaluate", "table", "bench", "view", "render",
 )
-
-
-def _choose_headless_renderer() -> None:
-    """Selects OSMesa offscreen rendering on a machine without a display.
-
-    dm_control picks its OpenGL backend when first imported; its default (GLFW) warns on every
-    import without a display and cannot render there. A backend the user chose is kept.
-    """
-    if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
-        os.environ["MUJOCO_GL"] = "osmesa"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -47,9 +37,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Runs the command line; returns the process exit status."""
-    _choose_headless_renderer()
     parser = build_parser()
     args = parser.parse_args(argv)
+    # MuJoCo reads MUJOCO_GL when first imported, which happens after this: a command that
+    # renders gets an installed backend, every other one none (a missing GL library must not
+    # break a vessel build).
+    if getattr(args, "renders", False):
+        _gl.choose_headless_backend()
+    else:
+        _gl.disable_rendering()
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.INFO,
         format="%(levelname)s %(name)s: %(message)s",

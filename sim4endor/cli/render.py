@@ -176,6 +176,9 @@ def state_vector(observation: Any) -> np.ndarray:
 
 def render_episode(args: argparse.Namespace) -> int:
     """Runs one episode with the policy and writes the video atomically."""
+    from sim4endor import _gl
+
+    _gl.require_rendering()
     import imageio.v2 as imageio
     from dm_control.mujoco import MovableCamera, TextOverlay
 
@@ -233,4 +236,4 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=480)
     parser.add_argument("--fps", type=int, default=20, help="20 = real time at 20 Hz control")
-    parser.set_defaults(func=render_episode)
+    parser.set_defaults(func=render_episode, renders=True)

@@ -139,6 +139,9 @@ class TeleopSession:
 
 def run_viewer(args: argparse.Namespace) -> int:
     """Opens the passive viewer and runs the teleoperation loop until it closes."""
+    from sim4endor import _gl
+
+    _gl.require_display("sim4endor view")
     import mujoco
     import mujoco.viewer
 
@@ -185,7 +188,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--reward", choices=("manifold", "euclidean"), default="manifold")
     parser.add_argument("--record", type=Path, default=None,
                         help="save the demonstration to this .npz file")
-    parser.set_defaults(func=run_viewer)
+    parser.set_defaults(func=run_viewer, renders=True)
 
 
 def load_recording(path: Path) -> dict[str, Any]:

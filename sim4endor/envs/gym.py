@@ -9,7 +9,7 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from sim4endor import registry
+from sim4endor import _gl, registry
 
 #: Info keys holding numbers (the others: ``failure``, a string naming the failure state).
 NUMERIC_INFO_KEYS: tuple[str, ...] = (
@@ -110,6 +110,8 @@ class NavigationEnv(gymnasium.Env[Any, np.ndarray]):
 
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}.")
+        if render_mode is not None:
+            _gl.require_rendering()
         self.entry = registry.find(domain, task)
         self.render_mode = render_mode
         self._size = (height, width)
