@@ -1,4 +1,9 @@
-"""Atomic output: a folder or file appears complete, or not at all."""
+"""Atomic output: a folder or file appears complete, or not at all.
+
+Staging files and folders come from :mod:`tempfile`, which makes them private (0600 / 0700);
+they get the permissions of ordinary new files (as the umask allows) before they are renamed
+into place, so outputs written atomically look like every other output.
+"""
 
 from __future__ import annotations
 
@@ -21,6 +26,8 @@ def atomic_directory(target: Path, *, overwrite: bool = True) -> Iterator[Path]:
     target.parent.mkdir(parents=True, exist_ok=True)
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} already exists; pass overwrite=True to replace it.")
+    if target.exists() and not target.is_dir():
+        raise FileExistsError(f"{target} exists and is not a folder; it is not replaced.")
     staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     try:
         yield staging
@@ -31,7 +38,7 @@ def atomic_directory(target: Path, *, overwrite: bool = True) -> Iterator[Path]:
     if target.exists():
         shutil.rmtree(backup, ignore_errors=True)
         target.rename(backup)
-    staging.chmod(0o755)
+    staging.chmod(0o777 & ~_umask())
     staging.rename(target)
     shutil.rmtree(backup, ignore_errors=True)
 
@@ -49,8 +56,16 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     try:
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def _umask() -> int:
+    # Reading the umask means setting it; set it straight back (no other way in the stdlib).
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask

@@ -10,9 +10,11 @@ installed, and code that renders checks first and says in one line what to insta
 
 from __future__ import annotations
 
+import contextlib
 import ctypes.util
 import os
 import sys
+from collections.abc import Iterator
 
 from sim4endor.errors import Sim4EndoRError
 
@@ -51,9 +53,27 @@ def choose_headless_backend() -> None:
     os.environ[MUJOCO_GL] = "osmesa" if ctypes.util.find_library("OSMesa") else "disable"
 
 
-def disable_rendering() -> None:
-    """For processes that never render (building vessels, training): no GL library is loaded."""
-    os.environ[MUJOCO_GL] = "disable"
+@contextlib.contextmanager
+def backend_for(renders: bool) -> Iterator[None]:
+    """Within the block, a headless backend for code that renders and none for other code.
+
+    Code that never renders (building vessels, training) then loads no GL library at all. The
+    environment is restored afterwards, so a command run from Python (e.g. a test) leaves
+    nothing behind for the processes started later.
+    """
+    saved = {k: os.environ.get(k) for k in (MUJOCO_GL, NO_OFFLOADING)}
+    if renders:
+        choose_headless_backend()
+    else:
+        os.environ[MUJOCO_GL] = "disable"
+    try:
+        yield
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
 
 
 def rendering_problem() -> str | None:

@@ -36,6 +36,7 @@ from typing import Literal, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from sim4endor._checks import is_number, require
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.centerline import CenterlineGraph, Projection
 
@@ -80,10 +81,13 @@ class RewardConfig:
             raise RewardConfigError(
                 f"Unknown reward metric {self.metric!r}; choose one of {list(METRICS)}."
             )
-        if self.curvature_weight < 0:
-            raise RewardConfigError(f"curvature_weight must be >= 0, got {self.curvature_weight}.")
-        if self.distance_divisor_mm <= 0 or self.success_distance <= 0:
-            raise RewardConfigError("distance_divisor_mm and success_distance must be positive.")
+        require(self, "RewardConfig", RewardConfigError,
+                non_negative=("curvature_weight", "goal_bonus"),
+                positive=("distance_divisor_mm", "success_distance"))
+        if not is_number(self.failure_penalty):
+            raise RewardConfigError(
+                f"RewardConfig.failure_penalty must be a number, got {self.failure_penalty!r}."
+            )
 
 
 class DistanceToTarget(Protocol):

@@ -52,9 +52,10 @@ import dataclasses
 import logging
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import dm_env
+import numpy as np
 from dm_control.mujoco.wrapper import MjModel
 from dm_control.rl import control
 
@@ -81,6 +82,7 @@ ALL_TASKS = registry.ALL_TASKS
 BENCHMARKING = registry.BENCHMARKING
 
 _LOG = logging.getLogger(__name__)
+_Config = TypeVar("_Config")
 
 #: task_kwargs understood by every task (besides the domain-specific ones below).
 _COMMON_KWARGS = (
@@ -138,25 +140,96 @@ def _navigation_config(kwargs: Mapping[str, Any]) -> NavigationConfig:
     reward = kwargs.get("reward", "manifold")
     if isinstance(reward, str):
         reward = RewardConfig(metric=reward)  # type: ignore[arg-type]
+    reward = _config(reward, RewardConfig, "reward")
     if "curvature_weight" in kwargs:
-        reward = dataclasses.replace(reward, curvature_weight=float(kwargs["curvature_weight"]))
-    extras = tuple(kwargs.get("observations", ()))
+        reward = dataclasses.replace(reward, curvature_weight=kwargs["curvature_weight"])
+    extras = kwargs.get("observations", ())
+    if isinstance(extras, str) or not all(isinstance(o, str) for o in extras):
+        raise TaskConfigError(
+            f"task_kwargs observations must be a list of entry names, e.g. ['rotation'], "
+            f"got {extras!r}."
+        )
     return NavigationConfig(
-        action=kwargs.get("action", ActionConfig()),
+        action=_config(kwargs.get("action", ActionConfig()), ActionConfig, "action"),
         reward=reward,
-        termination=kwargs.get("termination", TerminationConfig()),
-        initial_state=kwargs.get("initial_state", InitialStateConfig()),
+        termination=_config(kwargs.get("termination", TerminationConfig()), TerminationConfig,
+                            "termination"),
+        initial_state=_config(kwargs.get("initial_state", InitialStateConfig()),
+                              InitialStateConfig, "initial_state"),
         observations=DEFAULT_OBSERVATIONS + tuple(o for o in extras if o not in
                                                   DEFAULT_OBSERVATIONS),
-        pixels=kwargs.get("pixels", PixelsConfig()),
+        pixels=_config(kwargs.get("pixels", PixelsConfig()), PixelsConfig, "pixels"),
     )
+
+
+def _config(value: Any, cls: type[_Config], name: str) -> _Config:
+    """A task_kwargs setting as its config dataclass: given as one, or as a mapping of fields."""
+    if isinstance(value, cls):
+        return value
+    if isinstance(value, Mapping):
+        fields = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+        unknown = sorted(set(value) - fields)
+        if unknown:
+            raise TaskConfigError(
+                f"task_kwargs {name}: unknown fields {unknown}; valid: {sorted(fields)}."
+            )
+        return cls(**value)
+    raise TaskConfigError(
+        f"task_kwargs {name} must be a {cls.__name__} or a mapping of its fields, got {value!r}."
+    )
+
+
+def _seed(random: Any) -> int | np.random.RandomState | None:
+    """The task's ``random``: None, a seed in [0, 2**32) or a RandomState."""
+    if random is None or isinstance(random, np.random.RandomState):
+        return random
+    if isinstance(random, int | np.integer) and not isinstance(random, bool):
+        if 0 <= random < 2**32:
+            return int(random)
+    raise TaskConfigError(
+        f"task_kwargs random must be an integer seed in [0, 2**32) or a numpy RandomState, "
+        f"got {random!r}."
+    )
+
+
+def _integer(kwargs: Mapping[str, Any], name: str, default: int, minimum: int) -> int:
+    value = kwargs.get(name, default)
+    if isinstance(value, int | np.integer) and not isinstance(value, bool) and value >= minimum:
+        return int(value)
+    raise TaskConfigError(f"task_kwargs {name} must be an integer >= {minimum}, got {value!r}.")
+
+
+#: environment_kwargs that control.Environment takes besides physics and task.
+_ENVIRONMENT_KWARGS = ("time_limit", "control_timestep", "n_sub_steps", "flat_observation",
+                       "legacy_step")
+
+
+def _environment_kwargs(given: Mapping[str, Any]) -> dict[str, Any]:
+    """Checks environment_kwargs by name and value (dm_control accepts a negative time limit
+    and a NaN one, which end every episode after one step or never)."""
+    unknown = sorted(set(given) - set(_ENVIRONMENT_KWARGS))
+    if unknown:
+        raise TaskConfigError(
+            f"Unknown environment_kwargs {unknown}; valid: {list(_ENVIRONMENT_KWARGS)}."
+        )
+    for name in ("time_limit", "control_timestep"):
+        value = given.get(name, 1.0)
+        if not (isinstance(value, int | float) and not isinstance(value, bool) and value > 0):
+            raise TaskConfigError(
+                f"environment_kwargs {name} must be a positive number of seconds, got {value!r}."
+            )
+    steps = given.get("n_sub_steps", 1)
+    if steps is not None and not (isinstance(steps, int) and not isinstance(steps, bool)
+                                  and steps >= 1):
+        raise TaskConfigError(f"environment_kwargs n_sub_steps must be >= 1, got {steps!r}.")
+    return dict(given)
 
 
 def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> AnatomySource:
     if entry.domain == "random_coronary":
         return random_coronary.pool(
-            size=int(kwargs.get("pool_size", random_coronary.DEFAULT_POOL_SIZE)),
-            seed=int(kwargs.get("pool_seed", 0)),
+            size=_integer(kwargs, "pool_size", random_coronary.DEFAULT_POOL_SIZE, minimum=1),
+            seed=_integer(kwargs, "pool_seed", 0, minimum=0),
             cache_dir=None if kwargs.get("cache_dir") is None else Path(kwargs["cache_dir"]),
         )
     if entry.vessel is not None and entry.target is not None:
@@ -201,9 +274,11 @@ def load(
         raise TaskConfigError(f"Unknown task_kwargs {unknown} for {domain_name}/{task_name}; "
                               f"valid: {list(valid)}.")
     config = _navigation_config(kwargs)
+    seed = _seed(kwargs.get("random"))
+    extra_env_kwargs = _environment_kwargs(environment_kwargs or {})
     anatomies = _anatomy_source(entry, kwargs)
     physics = physics_for(anatomies.initial())
-    task = NavigationTask(anatomies, config, random=kwargs.get("random"))
+    task = NavigationTask(anatomies, config, random=seed)
     env_kwargs = {
         "time_limit": config.termination.time_limit,
         "control_timestep": config.action.control_timestep,
@@ -211,7 +286,7 @@ def load(
         # state, 5 ms before the end of the control step, and the wall force needs no extra
         # constraint solve (legacy stepping costs ~10 % more per step; see GuidewirePhysics).
         "legacy_step": False,
-        **dict(environment_kwargs or {}),
+        **extra_env_kwargs,
     }
     return NavigationEnvironment(physics, task, **env_kwargs)
 

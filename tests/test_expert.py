@@ -7,6 +7,8 @@ at bifurcation 1), and no amount of training would show it as anything but a low
 
 from __future__ import annotations
 
+import collections
+
 import numpy as np
 import pytest
 
@@ -15,16 +17,29 @@ from sim4endor.tasks.expert import CenterlineExpert, run_expert
 
 PHANTOM_TASKS = [(domain, task) for domain in ("simplified_phantom", "vascular_phantom")
                  for task in ("task_a", "task_b")]
+#: Seeded episodes per target, and how many must reach it.
+EPISODES, REACHED = 16, 10
 
 
-@pytest.mark.parametrize("seed", [1, 2])
 @pytest.mark.parametrize(("domain", "task"), PHANTOM_TASKS)
-def test_expert_reaches_every_phantom_target(domain: str, task: str, seed: int) -> None:
-    env = suite.load(domain, task, {"random": seed})
-    info = run_expert(env)
-    assert info["is_success"], (
-        f"the expert did not reach {domain}/{task} from seed {seed}: ended with "
-        f"{info['failure'] or 'timeout'} {1e3 * float(info['manifold_distance']):.1f} mm away"
+def test_expert_reaches_every_phantom_target(domain: str, task: str) -> None:
+    """Statistical over seeds, not one seed: whether one episode reaches the target depends
+    on the last bits of floating-point arithmetic (another CPU, another numpy), because the
+    wire's contacts chatter and the tip-force stop reads one sample of it. Measured over 40
+    seeds: 40/40 on both simplified targets, 34/40 on vascular A and 38/40 on vascular B (every
+    miss a tip-force stop in the last bend). A geometry defect (a target out of the wire's
+    reach) gives 0 of 16; at a true rate of 0.85 the chance of fewer than 10 is 0.6 %.
+    """
+    env = suite.load(domain, task, {"random": 0})
+    outcomes = []
+    for seed in range(EPISODES):
+        env.task.reseed(seed)
+        info = run_expert(env)
+        outcomes.append("reached" if info["is_success"] else str(info["failure"] or "timeout"))
+    reached = outcomes.count("reached")
+    assert reached >= REACHED, (
+        f"the expert reached {domain}/{task} in {reached} of {EPISODES} seeded episodes: "
+        f"{collections.Counter(outcomes)}"
     )
 
 

@@ -12,6 +12,7 @@ import importlib
 import logging
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from sim4endor import _gl
 from sim4endor.errors import Sim4EndoRError
@@ -22,9 +23,16 @@ _SUBCOMMAND_MODULES: tuple[str, ...] = (
 )
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line naming the argument, not the usage text."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Returns the top-level parser with every subcommand registered."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="sim4endor",
         description="Guidewire navigation simulator for robot-assisted PCI (MuJoCo + RL).",
     )
@@ -39,20 +47,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Runs the command line; returns the process exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    # MuJoCo reads MUJOCO_GL when first imported, which happens after this: a command that
-    # renders gets an installed backend, every other one none (a missing GL library must not
-    # break a vessel build).
-    if getattr(args, "renders", False):
-        _gl.choose_headless_backend()
-    else:
-        _gl.disable_rendering()
+    # sim4endor's own progress lines at INFO; other libraries' (absl, PyOpenGL) only from
+    # WARNING, unless -v asks for everything.
     logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.INFO,
+        level=logging.DEBUG if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
+    logging.getLogger("sim4endor").setLevel(logging.DEBUG if args.verbose else logging.INFO)
     try:
-        return int(args.func(args) or 0)
+        # MuJoCo reads MUJOCO_GL when first imported, during the command: one that renders
+        # gets an installed backend, every other one none (a missing GL library must not break
+        # a vessel build).
+        with _gl.backend_for(renders=getattr(args, "renders", False)):
+            return int(args.func(args) or 0)
     except Sim4EndoRError as exc:
+        print(f"sim4endor {args.command}: error: {exc}", file=sys.stderr)  # noqa: T201
+        return 2
+    except OSError as exc:  # a file or folder the command cannot read or write: names the path
         print(f"sim4endor {args.command}: error: {exc}", file=sys.stderr)  # noqa: T201
         return 2
     except KeyboardInterrupt:

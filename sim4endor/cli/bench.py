@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sim4endor.cli import args as arg_types
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Adds the ``bench`` subcommand."""
@@ -20,7 +22,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("config", type=Path, help="bench YAML, e.g. experiments/bench/table1.yaml")
     parser.add_argument("--out", type=Path, default=Path("runs/bench"), help="output folder")
     parser.add_argument("--backend", choices=("local", "ray"), default="local")
-    parser.add_argument("--workers", type=int, help="parallel runs (local backend)")
+    parser.add_argument("--workers", type=arg_types.positive_int,
+                        help="parallel runs (local backend)")
     parser.add_argument(
         "--report-only", action="store_true", help="only regenerate the table and figures"
     )

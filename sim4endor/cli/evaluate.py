@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from sim4endor.cli import args as arg_types
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Adds the ``evaluate`` subcommand."""
@@ -19,8 +21,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     parser.add_argument("run_dir", type=Path, help="folder written by `sim4endor train --out`")
-    parser.add_argument("--trials", type=int, default=10, help="episodes (default: 10)")
-    parser.add_argument("--seed", type=int, help="evaluation seed (default: the run's)")
+    parser.add_argument("--trials", type=arg_types.positive_int, default=10,
+                        help="episodes (default: 10)")
+    parser.add_argument("--seed", type=arg_types.seed, help="evaluation seed (default: the run's)")
     parser.add_argument("--json", action="store_true", help="print one JSON line")
     parser.set_defaults(func=run)
 

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from sim4endor.cli import args as arg_types
 from sim4endor.errors import Sim4EndoRError
 
 if TYPE_CHECKING:
@@ -30,10 +31,18 @@ TARGET_RGBA = np.array([0.1, 0.9, 0.2, 0.8], dtype=np.float32)
 #: The wire overlay of videos and figures: 0.5 mm radius, 3 px across at 640 px per phantom.
 WIRE_RADIUS = 0.5e-3
 WIRE_RGBA = np.array([0.35, 0.75, 1.0, 1.0], dtype=np.float32)
+#: Video formats the writer (imageio: ffmpeg, Pillow) produces, by file suffix.
+VIDEO_SUFFIXES = (".mp4", ".gif")
+#: Largest frame side (pixels): the offscreen buffer is allocated at this size.
+MAX_FRAME_SIZE = 4096
 
 
 class PolicyLoadError(Sim4EndoRError, ValueError):
     """Raised when ``--policy`` is neither a built-in name nor a loadable policy file."""
+
+
+class RenderArgumentError(Sim4EndoRError, ValueError):
+    """Raised for an output file or frame size the renderer cannot write."""
 
 
 def load_policy(spec: str, seed: int, env: NavigationEnvironment | None = None) -> Policy:
@@ -178,6 +187,17 @@ def render_episode(args: argparse.Namespace) -> int:
     """Runs one episode with the policy and writes the video atomically."""
     from sim4endor import _gl
 
+    out = Path(args.out)
+    if out.suffix.lower() not in VIDEO_SUFFIXES:
+        raise RenderArgumentError(
+            f"--out {out}: the video format is chosen by the suffix; use one of "
+            f"{', '.join(VIDEO_SUFFIXES)}."
+        )
+    if max(args.width, args.height) > MAX_FRAME_SIZE:
+        raise RenderArgumentError(
+            f"--width {args.width} --height {args.height}: frames are at most "
+            f"{MAX_FRAME_SIZE} pixels on a side."
+        )
     _gl.require_rendering()
     import imageio.v2 as imageio
     from dm_control.mujoco import MovableCamera, TextOverlay
@@ -192,6 +212,10 @@ def render_episode(args: argparse.Namespace) -> int:
         add_wire(scene, env.physics.wire_points())
         add_sphere(scene, env.task.target_position, 2.0e-3, TARGET_RGBA)
 
+    # The offscreen buffer is allocated from the model's size when the first frame renders.
+    buffer = env.physics.model.vis.global_
+    buffer.offwidth, buffer.offheight = (max(buffer.offwidth, args.width),
+                                         max(buffer.offheight, args.height))
     camera = MovableCamera(env.physics, height=args.height, width=args.width,
                            scene_callback=mark_target)
     camera.set_pose(**top_down_pose(env.task.anatomy.vessel.centerline.nodes))
@@ -207,7 +231,6 @@ def render_episode(args: argparse.Namespace) -> int:
             break
         timestep = env.step(policy(state_vector(timestep.observation)))
         step += 1
-    out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
         staging = Path(tmp) / f"partial{out.suffix}"
@@ -230,10 +253,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "centerline), a training run folder (its latest policy) or an "
                              "exported TorchScript policy (.pt)")
     parser.add_argument("--out", type=Path, default=Path("episode.mp4"), help="video file")
-    parser.add_argument("--seed", type=int, default=0, help="task and random-policy seed")
+    parser.add_argument("--seed", type=arg_types.seed, default=0,
+                        help="task and random-policy seed")
     parser.add_argument("--reward", choices=("manifold", "euclidean"), default="manifold")
-    parser.add_argument("--max-steps", type=int, default=400, help="stop after this many steps")
-    parser.add_argument("--width", type=int, default=640)
-    parser.add_argument("--height", type=int, default=480)
-    parser.add_argument("--fps", type=int, default=20, help="20 = real time at 20 Hz control")
+    parser.add_argument("--max-steps", type=arg_types.positive_int, default=400,
+                        help="stop after this many steps")
+    parser.add_argument("--width", type=arg_types.positive_int, default=640)
+    parser.add_argument("--height", type=arg_types.positive_int, default=480)
+    parser.add_argument("--fps", type=arg_types.positive_int, default=20,
+                        help="20 = real time at 20 Hz control")
     parser.set_defaults(func=render_episode, renders=True)

@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from sim4endor.cli import args as arg_types
 from sim4endor.rl.config import ALGORITHMS
 
 
@@ -24,9 +25,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--domain", help="suite domain (default: simplified_phantom)")
     parser.add_argument("--task", help="task of the domain (default: task_a)")
     parser.add_argument("--reward", choices=("manifold", "euclidean"), help="progress distance")
-    parser.add_argument("--frames", type=int, help="total environment steps (default: 100000)")
-    parser.add_argument("--seed", type=int, help="random seed (default: 0)")
-    parser.add_argument("--envs", type=int, help="parallel environments (default: 1)")
+    parser.add_argument("--frames", type=arg_types.positive_int,
+                        help="total environment steps (default: 100000)")
+    parser.add_argument("--seed", type=arg_types.seed, help="random seed (default: 0)")
+    parser.add_argument("--envs", type=arg_types.positive_int,
+                        help="parallel environments (default: 1)")
     parser.add_argument("--config", type=Path, help="YAML config file (e.g. experiments/sac/)")
     parser.add_argument(
         "--set",
@@ -43,10 +46,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Builds the config from defaults, file, flags and overrides; trains; prints the result."""
-    from sim4endor.rl.config import apply_overrides, default_config, load_config
+    from sim4endor.rl.config import ConfigError, apply_overrides, default_config, load_config
     from sim4endor.rl.trainer import train
 
-    overrides = [f"algorithm={args.algorithm}"] if args.config else []
     flags = {
         "env.domain": args.domain,
         "env.task": args.task,
@@ -55,12 +57,18 @@ def run(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "env.num_envs": args.envs,
     }
-    overrides += [f"{key}={value}" for key, value in flags.items() if value is not None]
+    overrides = [f"{key}={value}" for key, value in flags.items() if value is not None]
     overrides += args.overrides
     if args.config:
-        config = load_config(args.config, overrides)
+        config = load_config(args.config, overrides, algorithm=args.algorithm)
     else:
         config = apply_overrides(default_config(args.algorithm), overrides)
+    if config.algorithm != args.algorithm:
+        source = args.config or "--set algorithm=..."
+        raise ConfigError(
+            f"{source} configures {config.algorithm}, not {args.algorithm}: run `sim4endor "
+            f"train {config.algorithm} ...` or pass a {args.algorithm} configuration."
+        )
     metrics = train(config, args.out, progress=not args.no_progress)
     print(json.dumps(metrics))  # noqa: T201
     return 0

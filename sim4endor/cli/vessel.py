@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from sim4endor.cli import args as arg_types
 from sim4endor.errors import Sim4EndoRError
 
 
@@ -131,7 +132,8 @@ def add_build_parser(subparsers: Any) -> None:
     parser.add_argument("mesh", type=Path, help="lumen (blood-pool) surface mesh")
     parser.add_argument("--name", required=True, help="vessel name")
     parser.add_argument("--out", type=Path, default=None, help="vessel folder (default ./NAME)")
-    parser.add_argument("--units", choices=("mm", "m"), default="mm", help="mesh units (mm)")
+    parser.add_argument("--units", choices=("um", "mm", "m"), default="mm",
+                        help="mesh units (default mm)")
     parser.add_argument(
         "--centerline",
         type=Path,
@@ -181,7 +183,8 @@ def add_build_parser(subparsers: Any) -> None:
         "decomposed by CoACD where that gives fewer hulls (coacd, default), or only bisected "
         "(hull, about half the build time on large meshes)",
     )
-    parser.add_argument("--workers", type=int, default=2, help="processes for the wall (2)")
+    parser.add_argument("--workers", type=arg_types.positive_int, default=2,
+                        help="processes for the wall (2)")
     parser.add_argument("--license", type=Path, default=None, help="LICENSE file of the data")
     parser.add_argument("--source", default="", help="provenance line (default: mesh path)")
     parser.add_argument("--readme-text", default="", help="extra README paragraph")

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from sim4endor._atomic import atomic_write_bytes
+from sim4endor.cli import args as arg_types
 from sim4endor.cli.render import (
     TARGET_RGBA,
     add_sphere,
@@ -184,7 +185,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("domain", help="suite domain, e.g. simplified_phantom")
     parser.add_argument("task", help="suite task, e.g. task_a")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=arg_types.seed, default=0)
     parser.add_argument("--reward", choices=("manifold", "euclidean"), default="manifold")
     parser.add_argument("--record", type=Path, default=None,
                         help="save the demonstration to this .npz file")

@@ -152,7 +152,8 @@ class NavigationEnv(gymnasium.Env[Any, np.ndarray]):
         self, action: np.ndarray
     ) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Applies one control step; returns (obs, reward, terminated, truncated, info)."""
-        timestep = self.dm_env.step(np.asarray(action, dtype=np.float64))
+        # Not cast here: the task rejects text and bools, which a float cast would accept.
+        timestep = self.dm_env.step(action)
         terminated = bool(timestep.last() and timestep.discount == 0.0)
         truncated = bool(timestep.last() and not terminated)
         # Numbers as numpy scalars: TorchRL's info reader needs a dtype.

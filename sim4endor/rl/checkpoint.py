@@ -14,7 +14,9 @@ transitions overwritten next may differ slightly from an uninterrupted run.
 from __future__ import annotations
 
 import dataclasses
+import typing
 from pathlib import Path
+from typing import Any
 
 import torch
 from tensordict import TensorDict
@@ -72,12 +74,43 @@ def save_checkpoint(
             torch.save(filled.to_dict(), staging / REPLAY_FILE)
 
 
+def _read(path: Path, keys: tuple[str, ...], fix: str) -> dict[str, Any]:
+    """Loads a checkpoint file (tensors and plain data only), or says why it cannot be used.
+
+    torch's own message is not passed on: for a file that is not a weights-only checkpoint it
+    suggests ``weights_only=False``, which would run whatever code the file holds.
+    """
+    try:
+        data = torch.load(path, weights_only=True)
+    except Exception as exc:  # torch raises RuntimeError, EOFError, UnpicklingError, ...
+        raise CheckpointError(
+            f"{path} is not a readable checkpoint ({type(exc).__name__}: truncated, "
+            f"overwritten or not written by sim4endor); {fix}"
+        ) from None
+    missing = [k for k in keys if not isinstance(data, dict) or k not in data]
+    if missing:
+        raise CheckpointError(f"{path} is not a sim4endor checkpoint (no {missing}); {fix}")
+    return typing.cast(dict[str, Any], data)
+
+
+def _restart_hint(path: Path) -> str:
+    return f"delete {path.parent} to start the run again, or restore it from a backup."
+
+
+def _progress(state: dict[str, Any], path: Path) -> Progress:
+    try:
+        return Progress(**state["progress"])
+    except TypeError as exc:
+        raise CheckpointError(f"{path} holds unreadable counters ({exc}); "
+                              f"{_restart_hint(path)}") from None
+
+
 def load_progress(run_dir: Path) -> Progress:
     """Returns the counters of ``run_dir``'s checkpoint (zeros when it has none)."""
     path = Path(run_dir) / CHECKPOINT_DIR / STATE_FILE
     if not path.is_file():
         return Progress()
-    return Progress(**torch.load(path, weights_only=True)["progress"])
+    return _progress(_read(path, ("progress",), _restart_hint(path)), path)
 
 
 def load_checkpoint(
@@ -94,11 +127,26 @@ def load_checkpoint(
             f"No checkpoint in {run_dir} (expected {path}); train with `sim4endor train ... "
             f"--out {run_dir}` first."
         )
-    state = torch.load(path, weights_only=True)
-    agent.load_state_dict(state["agent"])
-    torch.set_rng_state(state["torch_rng"])
+    state = _read(path, ("agent", "progress", "torch_rng"), _restart_hint(path))
+    progress = _progress(state, path)
+    try:
+        agent.load_state_dict(state["agent"])
+        torch.set_rng_state(state["torch_rng"])
+    except (RuntimeError, KeyError, TypeError, ValueError) as exc:
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise CheckpointError(
+            f"{path} does not fit this run's networks ({reason}); was it copied from another "
+            f"run? {_restart_hint(path)}"
+        ) from None
     replay = path.parent / REPLAY_FILE
     if replay_buffer is not None and replay.is_file():
-        data = torch.load(replay, weights_only=True)
-        replay_buffer.extend(TensorDict.from_dict(data, auto_batch_size=True, batch_dims=1))
-    return Progress(**state["progress"])
+        data = _read(replay, (), "delete it to resume with an empty replay buffer.")
+        try:
+            transitions = TensorDict.from_dict(data, auto_batch_size=True, batch_dims=1)
+        except Exception as exc:  # tensordict raises several types on malformed data
+            raise CheckpointError(
+                f"{replay} is not a readable replay buffer ({type(exc).__name__}); delete it to "
+                "resume with an empty buffer."
+            ) from None
+        replay_buffer.extend(transitions)
+    return progress

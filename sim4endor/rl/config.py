@@ -18,6 +18,7 @@ from typing import Any, Literal
 
 import yaml
 
+from sim4endor._checks import require
 from sim4endor.errors import Sim4EndoRError
 
 Algorithm = Literal["ddpg", "sac", "ppo"]
@@ -26,6 +27,15 @@ ALGORITHMS: tuple[str, ...] = ("ddpg", "sac", "ppo")
 
 class ConfigError(Sim4EndoRError, ValueError):
     """A configuration file or override names an unknown field or holds a bad value."""
+
+
+#: Largest seed: torch, numpy and the collectors take seeds below 2**32, and the evaluation
+#: and resumption offsets are added to it.
+MAX_SEED = 2**31 - 1
+
+
+def _check(config: object, section: str, **rules: tuple[str, ...]) -> None:
+    require(config, section, ConfigError, **rules)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,6 +59,9 @@ class EnvConfig:
     num_envs: int = 1
     extra_observations: tuple[str, ...] = ()
 
+    def __post_init__(self) -> None:
+        _check(self, "env", positive=("num_envs",))
+
 
 @dataclasses.dataclass(frozen=True)
 class CollectorConfig:
@@ -63,6 +76,10 @@ class CollectorConfig:
     total_frames: int = 100_000
     frames_per_batch: int = 1_000
     init_random_frames: int = 2_000
+
+    def __post_init__(self) -> None:
+        _check(self, "collector", positive=("total_frames", "frames_per_batch"),
+               non_negative=("init_random_frames",))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,6 +102,10 @@ class OptimConfig:
     tau: float = 0.005
     max_grad_norm: float = 10.0
 
+    def __post_init__(self) -> None:
+        _check(self, "optim", positive=("lr", "batch_size", "max_grad_norm"),
+               non_negative=("updates_per_batch",), unit=("gamma", "tau"))
+
 
 @dataclasses.dataclass(frozen=True)
 class ReplayConfig:
@@ -95,6 +116,9 @@ class ReplayConfig:
     """
 
     size: int = 1_000_000
+
+    def __post_init__(self) -> None:
+        _check(self, "replay", positive=("size",))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -115,6 +139,9 @@ class NetworkConfig:
     activation: Literal["relu", "tanh"] = "relu"
     observation_scale: tuple[float, ...] = (20.0, 20.0, 20.0, 30.0, 30.0, 30.0)
 
+    def __post_init__(self) -> None:
+        _check(self, "network", positive=("hidden_sizes", "observation_scale"))
+
 
 @dataclasses.dataclass(frozen=True)
 class ExplorationConfig:
@@ -125,6 +152,9 @@ class ExplorationConfig:
     """
 
     noise_std: float = 0.1
+
+    def __post_init__(self) -> None:
+        _check(self, "exploration", non_negative=("noise_std",))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -140,6 +170,9 @@ class SACConfig:
     """
 
     alpha_init: float = 0.01
+
+    def __post_init__(self) -> None:
+        _check(self, "sac", positive=("alpha_init",))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -160,6 +193,10 @@ class PPOConfig:
     gae_lambda: float = 0.95
     entropy_coef: float = 1e-3
 
+    def __post_init__(self) -> None:
+        _check(self, "ppo", positive=("clip_epsilon", "epochs", "minibatch_size"),
+               fraction=("gae_lambda",), non_negative=("entropy_coef",))
+
 
 @dataclasses.dataclass(frozen=True)
 class EvalConfig:
@@ -174,6 +211,9 @@ class EvalConfig:
     interval_frames: int = 10_000
     trials: int = 10
     max_steps: int = 1_000
+
+    def __post_init__(self) -> None:
+        _check(self, "eval", positive=("trials", "max_steps"), non_negative=("interval_frames",))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -214,6 +254,12 @@ class TrainConfig:
     eval: EvalConfig = EvalConfig()
     logger: LoggerConfig = LoggerConfig()
 
+    def __post_init__(self) -> None:
+        _check(self, "", positive=("torch_threads",),
+               non_negative=("seed", "checkpoint_interval_frames"))
+        if self.seed > MAX_SEED:
+            raise ConfigError(f"seed must be at most {MAX_SEED}, got {self.seed}.")
+
 
 def default_config(algorithm: str) -> TrainConfig:
     """Returns the paper's defaults for ``algorithm``.
@@ -244,16 +290,18 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def from_dict(data: Mapping[str, Any], *, source: str = "config") -> TrainConfig:
+def from_dict(
+    data: Mapping[str, Any], *, source: str = "config", algorithm: str = "ddpg"
+) -> TrainConfig:
     """Builds a :class:`TrainConfig` from nested dicts; missing fields keep their defaults.
 
     The algorithm's defaults (:func:`default_config`) are the base, so a file need only list
-    what it changes.
+    what it changes; ``algorithm`` is used when ``data`` names none.
 
     Raises:
         ConfigError: on an unknown section or field, naming the valid ones.
     """
-    algorithm = str(data.get("algorithm", "ddpg"))
+    algorithm = str(data.get("algorithm", algorithm))
     return _merge(default_config(algorithm), data, source)
 
 
@@ -287,22 +335,33 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
             raise ConfigError(f"{where} must be a list, got {value!r}.")
         item = typing.get_args(hint)[0]
         return tuple(_coerce(v, item, f"{where}[{i}]") for i, v in enumerate(value))
-    try:
-        if hint is bool:
-            return bool(value)
-        if hint is int and not (isinstance(value, float) and not value.is_integer()):
-            return int(value)
-        if hint is float:
-            return float(value)
-        if hint is str:
-            return str(value)
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"{where}: cannot read {value!r} as {hint.__name__}.") from exc
-    raise ConfigError(f"{where}: cannot read {value!r} as {hint}.")
+    if hint is bool and isinstance(value, bool):
+        return value
+    if hint in (int, float) and isinstance(value, str):
+        # PyYAML reads 3e-4 (no dot) as text.
+        try:
+            value = float(value)
+        except ValueError:
+            pass
+    # A bool is not a number here: YAML reads "yes" as True.
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    if hint is int and number and float(value).is_integer():
+        return int(value)
+    if hint is float and number:
+        return float(value)
+    if hint is str and isinstance(value, str | int | float) and not isinstance(value, bool):
+        return str(value)
+    name = getattr(hint, "__name__", str(hint))
+    raise ConfigError(f"{where}: cannot read {value!r} as {name}.")
 
 
-def load_config(path: Path, overrides: Iterable[str] = ()) -> TrainConfig:
-    """Reads a YAML config file and applies ``section.field=value`` overrides."""
+def load_config(
+    path: Path, overrides: Iterable[str] = (), *, algorithm: str = "ddpg"
+) -> TrainConfig:
+    """Reads a YAML config file and applies ``section.field=value`` overrides.
+
+    ``algorithm`` is the algorithm of a file that names none.
+    """
     path = Path(path)
     try:
         data = yaml.safe_load(path.read_text()) or {}
@@ -310,7 +369,7 @@ def load_config(path: Path, overrides: Iterable[str] = ()) -> TrainConfig:
         raise ConfigError(f"Cannot read config file {path}: {exc}") from exc
     if not isinstance(data, Mapping):
         raise ConfigError(f"{path}: expected a mapping of config sections at the top level.")
-    return apply_overrides(from_dict(data, source=str(path)), overrides)
+    return apply_overrides(from_dict(data, source=str(path), algorithm=algorithm), overrides)
 
 
 def apply_overrides(config: TrainConfig, overrides: Iterable[str]) -> TrainConfig:

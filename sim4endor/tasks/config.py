@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sim4endor._checks import require
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rewards import RewardConfig
 
@@ -48,9 +49,8 @@ class ActionConfig:
     max_rotation_step: float = math.radians(9.0)
 
     def __post_init__(self) -> None:
-        for name in ("control_timestep", "max_insertion_step", "max_rotation_step"):
-            if not getattr(self, name) > 0:
-                raise TaskConfigError(f"ActionConfig.{name} must be positive.")
+        require(self, "ActionConfig", TaskConfigError,
+                positive=("control_timestep", "max_insertion_step", "max_rotation_step"))
 
 
 @dataclass(frozen=True)
@@ -91,11 +91,9 @@ class TerminationConfig:
     max_rotation: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("time_limit", "max_tip_force", "lumen_margin", "max_insertion",
-                     "max_rotation"):
-            value = getattr(self, name)
-            if value is not None and not value > 0:
-                raise TaskConfigError(f"TerminationConfig.{name} must be positive.")
+        require(self, "TerminationConfig", TaskConfigError,
+                positive=("time_limit", "max_tip_force", "lumen_margin", "max_insertion",
+                          "max_rotation"))
 
 
 @dataclass(frozen=True)
@@ -117,9 +115,8 @@ class InitialStateConfig:
     insertion_range: float = 1.0e-3
 
     def __post_init__(self) -> None:
-        for name in ("rotation_range", "insertion_range"):
-            if not getattr(self, name) >= 0:
-                raise TaskConfigError(f"InitialStateConfig.{name} must be >= 0.")
+        require(self, "InitialStateConfig", TaskConfigError,
+                non_negative=("rotation_range", "insertion_range"))
 
 
 @dataclass(frozen=True)
@@ -142,6 +139,7 @@ class PixelsConfig:
     up: tuple[float, float, float] = (0.0, 1.0, 0.0)
 
     def __post_init__(self) -> None:
+        require(self, "PixelsConfig", TaskConfigError, positive=("height", "width"))
         if self.height < 8 or self.width < 8:
             raise TaskConfigError(f"PixelsConfig: images must be >= 8x8, got {self}.")
         if abs(float(np.dot(_unit(self.view_direction), _unit(self.up)))) > 0.99:

@@ -207,7 +207,13 @@ class NavigationTask(base.Task):
 
     def before_step(self, action: np.ndarray, physics: control.Physics) -> None:
         """Validates the action and moves the driver targets by Δd, Δθ."""
-        a = np.asarray(action, dtype=np.float64)
+        a = np.asarray(action)
+        if a.dtype.kind not in "iuf":  # not bools, text or objects, which numpy would cast
+            raise InvalidActionError(
+                f"Action must be two numbers [insertion, rotation] in [-1, 1], got "
+                f"{np.asarray(action).tolist()!r} (dtype {a.dtype})."
+            )
+        a = a.astype(np.float64, copy=False)
         if a.shape != (2,):
             raise InvalidActionError(
                 f"Action must have shape (2,) = [insertion, rotation], got {a.shape}."

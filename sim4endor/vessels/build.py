@@ -26,7 +26,6 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from importlib import metadata
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 import trimesh
@@ -34,19 +33,34 @@ from tqdm.auto import tqdm
 
 from sim4endor._atomic import atomic_directory
 from sim4endor.errors import Sim4EndoRError
-from sim4endor.vessels import CENTERLINE_FILE, Vessel, load
+from sim4endor.vessels import CENTERLINE_FILE, SCENE_FILE, Vessel, load
 from sim4endor.vessels.axis import AxisSamples, branch_chains, sample_axis
 from sim4endor.vessels.centerline import CenterlineGraph
 from sim4endor.vessels.checks import (
     CheckParams,
     inlet_cap,
     lumen_open_fraction,
+    stray_openings,
     wall_closed_fraction,
     wall_probes,
 )
-from sim4endor.vessels.manifest import Inlet, Manifest
-from sim4endor.vessels.meshio import UNIT_SCALE, capped, prepare_lumen
-from sim4endor.vessels.mjcf_writer import write_meshes, write_scene, write_vessel_mjcf
+from sim4endor.vessels.manifest import MANIFEST_FILE, Inlet, Manifest
+from sim4endor.vessels.meshio import (
+    UNIT_SCALE,
+    MeshInputError,
+    PreparedLumen,
+    Units,
+    capped,
+    close_openings,
+    prepare_lumen,
+)
+from sim4endor.vessels.mjcf_writer import (
+    HULL_DIR,
+    LUMEN_FILE,
+    write_meshes,
+    write_scene,
+    write_vessel_mjcf,
+)
 from sim4endor.vessels.register import RegistrationParams, register_centerline
 from sim4endor.vessels.skeleton import SkeletonParams, extract_centerline
 from sim4endor.vessels.walls import Hull, WallContext, WallParams, bin_faces, build_hulls
@@ -150,6 +164,38 @@ def _terminal_direction(graph: CenterlineGraph, node: int) -> np.ndarray:
     return direction / np.linalg.norm(direction)
 
 
+def _close_wall_holes(
+    prepared: PreparedLumen, graph: CenterlineGraph, source: str, max_perimeter: float
+) -> PreparedLumen:
+    """Fills small openings of the lumen that are not vessel ends; refuses large ones.
+
+    :func:`.meshio.prepare_lumen` fills small side-wall holes and refuses large ones it can
+    tell from a cut vessel end by their shape; a hole in a curved wall, or a slit left by a
+    mesh union, can look like an end there. With the centerline known it cannot: a vessel end
+    is where the centerline ends. Openings below ``max_perimeter`` lumen radii around are
+    filled as :func:`.meshio.prepare_lumen` fills them; a larger one is an error naming it.
+
+    Raises:
+        MeshInputError: for a hole of ``max_perimeter`` lumen radii or more.
+    """
+    stray = stray_openings(prepared.mesh.vertices, prepared.end_loops, graph)
+    limit = max_perimeter * prepared.radius_estimate
+    large = [o for o in stray if o.perimeter > limit]
+    if large:
+        hole = max(large, key=lambda o: o.perimeter)
+        where = np.round(hole.centre / prepared.scale, 3).tolist()
+        raise MeshInputError(
+            f"{source} has {len(large)} hole(s) in the vessel wall that are not vessel ends "
+            f"(the largest {hole.perimeter * 1e3:.3g} mm around, near {where} in input units; "
+            "no centerline end is there). Close them in the segmentation or a mesh tool (holes "
+            f"below {max_perimeter:g} lumen radii around are filled automatically)."
+        )
+    if stray:
+        logger.info("%s: filled %d small hole(s) in the wall", source, len(stray))
+        return close_openings(prepared, [o.loop for o in stray])
+    return prepared
+
+
 def _choose_inlet(graph: CenterlineGraph, inlet: np.ndarray | None) -> int:
     ends = graph.terminal_nodes()
     if len(ends) == 0:
@@ -197,6 +243,55 @@ def _labelled(
     )
 
 
+#: Files a build writes into a vessel folder besides ``<name>.xml`` and the hull meshes.
+_BUILD_FILES = (MANIFEST_FILE, CENTERLINE_FILE, SCENE_FILE, LUMEN_FILE, "README.md", "LICENSE")
+
+
+def check_output_folder(out_dir: Path) -> None:
+    """Raises :class:`BuildError` unless a build may write ``out_dir``.
+
+    A build replaces its output folder as a whole, so the folder must not exist, be empty, or
+    be a vessel folder holding only what a build writes. Anything else (a file, a folder of
+    other files, a vessel folder with files added to it) is refused, naming what is in the way:
+    a build never deletes what it did not write.
+    """
+    out_dir = Path(out_dir)
+    if not out_dir.exists():
+        return
+    if not out_dir.is_dir():
+        raise BuildError(f"{out_dir} exists and is not a folder; choose another output folder.")
+    entries = sorted(p.name for p in out_dir.iterdir())
+    if not entries:
+        return
+    try:
+        mjcf = Manifest.load(out_dir).mjcf
+    except Sim4EndoRError:
+        raise BuildError(
+            f"{out_dir} is not empty and not a vessel folder (it holds {entries[:3]}...); "
+            "choose a new or empty output folder. A build replaces its folder as a whole."
+        ) from None
+    foreign = [e for e in entries if e not in (*_BUILD_FILES, mjcf, HULL_DIR)]
+    hulls = out_dir / HULL_DIR
+    if hulls.is_dir():
+        foreign += [f"{HULL_DIR}/{p.name}" for p in sorted(hulls.iterdir())
+                    if not (p.is_file() and p.name.startswith("hull_") and p.suffix == ".stl")]
+    if foreign:
+        raise BuildError(
+            f"{out_dir} is a vessel folder with files a build did not write ({foreign[:3]}); "
+            "move them out or choose another output folder: a build replaces the folder."
+        )
+
+
+def _store_in_cache(out_dir: Path, cached: Path) -> None:
+    """Copies a finished build into the cache; a cache that cannot be written only warns."""
+    try:
+        with atomic_directory(cached) as staging:
+            shutil.copytree(out_dir, staging, dirs_exist_ok=True)
+    except OSError as exc:
+        logger.warning("could not store the build in the cache (%s); the vessel folder %s is "
+                       "complete", exc, out_dir)
+
+
 def _readme(name: str, source: str, units: str, text: str, manifest: Manifest) -> str:
     checks = manifest.checks
     return (
@@ -217,7 +312,7 @@ def build_vessel(
     *,
     name: str,
     out_dir: Path,
-    units: Literal["mm", "m"] = "m",
+    units: Units = "m",
     centerline: CenterlineGraph | None = None,
     inlet: np.ndarray | None = None,
     targets: Mapping[str, np.ndarray] | None = None,
@@ -254,6 +349,7 @@ def build_vessel(
     out_dir = Path(out_dir)
     if not name or any(c in name for c in "/\\ ") or name.startswith("."):
         raise BuildError(f"Vessel name {name!r} must be a non-empty file name without spaces.")
+    check_output_folder(out_dir)
     key = content_hash(
         lumen,
         name=name,
@@ -268,7 +364,7 @@ def build_vessel(
         readme=readme_text,
     )
     cached = cache_root() / key
-    if cache and (cached / "manifest.json").is_file():
+    if cache and (cached / MANIFEST_FILE).is_file():
         logger.info("%s: unchanged inputs, using the cached build %s", name, key[:12])
         with atomic_directory(out_dir) as staging:
             shutil.copytree(cached, staging, dirs_exist_ok=True)
@@ -292,6 +388,8 @@ def build_vessel(
         centerline = extract_centerline(
             capped(prepared), params.skeleton, radius_hint=prepared.radius_estimate
         )
+    prepared = _close_wall_holes(prepared, centerline, source or name,
+                                 params.max_hole_perimeter)
     inlet_node = _choose_inlet(centerline, None if inlet is None else np.asarray(inlet) * scale)
     target_points = _choose_targets(
         centerline,
@@ -390,9 +488,8 @@ def build_vessel(
         (staging / "README.md").write_text(_readme(name, source, units, readme_text, manifest))
         if license_text is not None:
             (staging / "LICENSE").write_text(license_text)
-        if cache:
-            with atomic_directory(cached) as cache_staging:
-                shutil.copytree(staging, cache_staging, dirs_exist_ok=True)
+    if cache:
+        _store_in_cache(out_dir, cached)
     logger.info(
         "%s: %d hulls, lumen open %.4f, wall closed %.4f, %.1f s",
         name,

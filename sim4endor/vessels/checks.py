@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -22,7 +23,10 @@ import trimesh
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.axis import AxisSamples, sample_axis
+from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.meshio import boundary_loops
 from sim4endor.vessels.walls import Hull, convex_hull
 
 if TYPE_CHECKING:
@@ -131,6 +135,45 @@ def wall_closed_fraction(hulls: Sequence[Hull], probes: FloatArray, slack: float
     return float(np.mean(bound <= slack))
 
 
+@dataclass(frozen=True)
+class Opening:
+    """A boundary loop of the lumen surface (an opening in it).
+
+    Attributes:
+        loop: Vertex indices of the loop, in order.
+        centre: Mean of the loop's vertices (m).
+        perimeter: Length of the loop (m).
+    """
+
+    loop: NDArray[np.int64]
+    centre: FloatArray
+    perimeter: float
+
+
+def stray_openings(
+    vertices: FloatArray, loops: Sequence[NDArray[np.int64]], graph: CenterlineGraph,
+    reach: float = 3.0,
+) -> list[Opening]:
+    """Returns the openings of the lumen that are not vessel ends.
+
+    A vessel end is open where the centerline ends: a terminal node lies within ``reach``
+    times the opening's radius (mean distance of its vertices from their centre) of it.
+    Any other opening is a hole in the side wall, however it is shaped, and no wall hull
+    covers it.
+    """
+    ends = graph.nodes[graph.terminal_nodes()]
+    stray = []
+    for loop in loops:
+        points = vertices[loop]
+        centre = points.mean(axis=0)
+        radius = float(np.linalg.norm(points - centre, axis=1).mean())
+        nearest = float(np.linalg.norm(ends - centre, axis=1).min()) if len(ends) else np.inf
+        if nearest > reach * radius:
+            perimeter = float(np.linalg.norm(points - np.roll(points, 1, axis=0), axis=1).sum())
+            stray.append(Opening(loop, centre, perimeter))
+    return stray
+
+
 def inlet_cap(
     mesh: trimesh.Trimesh, position: FloatArray, direction: FloatArray, radius: float
 ) -> NDArray[np.bool_]:
@@ -142,9 +185,19 @@ def inlet_cap(
     return np.asarray((along < 0.25 * radius) & (lateral < 1.5 * radius) & facing)
 
 
-def _mesh(path: Any) -> trimesh.Trimesh:
-    mesh = trimesh.load(path, force="mesh")
-    assert isinstance(mesh, trimesh.Trimesh)  # force="mesh" always gives one
+class VesselCheckError(Sim4EndoRError, ValueError):
+    """Raised when a vessel folder's files cannot be read; the message names the file."""
+
+
+def _mesh(path: Path) -> trimesh.Trimesh:
+    try:
+        mesh = trimesh.load(path, force="mesh")
+    except Exception as exc:  # trimesh raises many unrelated types for unreadable files
+        raise VesselCheckError(f"{path} is not a readable mesh ({type(exc).__name__}); "
+                               "rebuild the folder with the command in its README.") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise VesselCheckError(f"{path} holds no triangles; rebuild the folder with the "
+                               "command in its README.")
     return mesh
 
 
@@ -153,13 +206,23 @@ def check_folder(vessel: Vessel, params: CheckParams | None = None) -> dict[str,
 
     Returns:
         ``lumen_open``, ``wall_closed``, ``hull_count``, ``compiles`` (MuJoCo loads
-        ``scene.xml``; any warning counts as a failure) and ``passed``.
+        ``scene.xml``; any warning counts as a failure), ``wall_holes`` (openings of the lumen
+        that are not vessel ends, see :func:`stray_openings`) and ``passed``.
     """
     import mujoco
 
     from sim4endor.vessels.mjcf_writer import HULL_DIR, LUMEN_FILE
 
     params = params or CheckParams()
+    # MuJoCo first: it opens every file the MJCF names, and says which one fails.
+    try:
+        model = mujoco.MjModel.from_xml_path(str(vessel.scene_path))
+    except ValueError as exc:
+        reason = str(exc).strip().splitlines()[0].removeprefix("Error: ")
+        raise VesselCheckError(
+            f"{vessel.root}: MuJoCo cannot load the folder ({reason}); rebuild it with the "
+            "command in its README."
+        ) from None
     hulls = [
         h
         for path in sorted((vessel.root / HULL_DIR).glob("*.stl"))
@@ -180,17 +243,19 @@ def check_folder(vessel: Vessel, params: CheckParams | None = None) -> dict[str,
         thickness,
     )
     wall_closed = wall_closed_fraction(hulls, probes, slack=1e-3 * float(axis.radius.min()))
-    model = mujoco.MjModel.from_xml_path(str(vessel.scene_path))
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     compiles = int(sum(w.number for w in data.warning)) == 0
+    stray = stray_openings(np.asarray(lumen.vertices), boundary_loops(lumen), vessel.centerline)
     passed = (
-        lumen_open >= params.min_lumen_open and wall_closed >= params.min_wall_closed and compiles
+        lumen_open >= params.min_lumen_open and wall_closed >= params.min_wall_closed
+        and compiles and not stray
     )
     return {
         "lumen_open": lumen_open,
         "wall_closed": wall_closed,
         "hull_count": len(hulls),
         "compiles": compiles,
+        "wall_holes": len(stray),
         "passed": bool(passed),
     }

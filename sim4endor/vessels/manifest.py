@@ -43,7 +43,7 @@ class Manifest:
     Attributes:
         name: Vessel name, also the folder and MJCF model name.
         source: Where the geometry came from (generator call or input mesh path).
-        units: Units of the input mesh (``"mm"`` or ``"m"``).
+        units: Units of the input mesh (``"um"``, ``"mm"`` or ``"m"``).
         mesh_to_model: 4×4 matrix from input-mesh coordinates (input units) to model metres.
         inlet: Wire entry point and direction.
         targets: Named target points in model metres (e.g. ``{"A": (...), "B": (...)}``).

@@ -16,6 +16,7 @@ an absurd lumen radius for the declared units.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,10 +31,10 @@ from sim4endor.errors import Sim4EndoRError
 logger = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
-Units = Literal["mm", "m"]
+Units = Literal["um", "mm", "m"]
 
 SUPPORTED_SUFFIXES = (".stl", ".obj", ".ply", ".off")
-UNIT_SCALE: dict[str, float] = {"mm": 1e-3, "m": 1.0}
+UNIT_SCALE: dict[str, float] = {"um": 1e-6, "mm": 1e-3, "m": 1.0}
 #: Plausible lumen radii (m) of vessels a guidewire navigates: small coronary to large aorta.
 PLAUSIBLE_RADIUS = (0.2e-3, 30e-3)
 
@@ -141,6 +142,16 @@ def _loop_is_side_hole(mesh: trimesh.Trimesh, loop: NDArray[np.int64]) -> bool:
     return bool(np.median(alignment) > 0.5)
 
 
+def _units_hint(raw_radius: float) -> str:
+    """Names the units in which a radius of ``raw_radius`` (input units) would be plausible."""
+    fitting = [u for u, k in UNIT_SCALE.items()
+               if PLAUSIBLE_RADIUS[0] <= raw_radius * k <= PLAUSIBLE_RADIUS[1]]
+    if fitting:
+        return f"If the mesh is in {fitting[0]}, pass --units {fitting[0]}."
+    return (f"No supported unit ({', '.join(UNIT_SCALE)}) makes it plausible: check the mesh's "
+            "scale.")
+
+
 def estimate_radius(mesh: trimesh.Trimesh, samples: int = 256, seed: int = 0) -> float:
     """Estimates the median lumen radius: half the distance across the lumen along the normal.
 
@@ -178,6 +189,28 @@ def _fill_loop(mesh: trimesh.Trimesh, loop: NDArray[np.int64]) -> trimesh.Trimes
     )
 
 
+def close_openings(prepared: PreparedLumen, loops: list[NDArray[np.int64]]) -> PreparedLumen:
+    """Returns ``prepared`` with some of its open ends (``loops``, from ``end_loops``) filled.
+
+    For small openings found to be holes only once the centerline is known (see
+    :func:`sim4endor.vessels.checks.stray_openings`); they count as filled holes in the report.
+    Filling appends vertices, so the indices of the other loops stay valid.
+    """
+    mesh = prepared.mesh
+    for loop in loops:
+        mesh = _fill_loop(mesh, loop)
+    closed = {id(loop) for loop in loops}
+    report = dataclasses.replace(
+        prepared.report,
+        filled_holes=prepared.report.filled_holes + len(loops),
+        open_ends=prepared.report.open_ends - len(loops),
+    )
+    return dataclasses.replace(
+        prepared, mesh=mesh, report=report,
+        end_loops=[loop for loop in prepared.end_loops if id(loop) not in closed],
+    )
+
+
 def capped(prepared: PreparedLumen) -> trimesh.Trimesh:
     """Returns the lumen with its open ends closed by fans (for voxelisation)."""
     mesh = prepared.mesh
@@ -198,14 +231,14 @@ def prepare_lumen(
 
     Args:
         mesh: The lumen surface in input units.
-        units: Units of ``mesh`` (``"mm"`` or ``"m"``).
+        units: Units of ``mesh`` (``"um"``, ``"mm"`` or ``"m"``).
         source: Name of the input (file path) used in error messages.
         keep_largest: Drop every connected component but the largest instead of failing.
         max_hole_perimeter: Side-wall holes whose perimeter is below this many lumen radii are
             filled; larger ones are errors.
     """
     if units not in UNIT_SCALE:
-        raise MeshInputError(f"units must be 'mm' or 'm', got {units!r}.")
+        raise MeshInputError(f"units must be one of {list(UNIT_SCALE)}, got {units!r}.")
     work = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False)
     if len(work.faces) == 0:
         raise MeshInputError(f"{source} holds no triangles.")
@@ -249,11 +282,10 @@ def prepare_lumen(
 
     radius = estimate_radius(work)
     if not PLAUSIBLE_RADIUS[0] <= radius <= PLAUSIBLE_RADIUS[1]:
-        other = "m" if units == "mm" else "mm"
         raise MeshInputError(
             f"{source}: with units={units!r} the median lumen radius is {radius * 1e3:.4g} mm, "
             f"absurd for a vessel (expected {PLAUSIBLE_RADIUS[0] * 1e3:g}–"
-            f"{PLAUSIBLE_RADIUS[1] * 1e3:g} mm). If the mesh is in {other}, pass --units {other}."
+            f"{PLAUSIBLE_RADIUS[1] * 1e3:g} mm). {_units_hint(radius / scale)}"
         )
 
     filled = 0
