@@ -203,13 +203,32 @@ def test_an_unwritable_cache_keeps_the_build(tmp_path: Path, tube_mesh: Path,
     assert "could not store the build in the cache" in caplog.text
 
 
-def test_outputs_get_ordinary_file_modes(tube_folder: Path) -> None:
-    """manifest.json and centerline.json were written 0600 (tempfile's mode), the rest 0644."""
+def file_modes(folder: Path) -> dict[str, int]:
+    return {str(p.relative_to(folder)): stat.S_IMODE(p.stat().st_mode)
+            for p in folder.rglob("*") if p.is_file()}
+
+
+def ordinary_mode() -> int:
     umask = os.umask(0o022)
     os.umask(umask)
-    modes = {str(p.relative_to(tube_folder)): stat.S_IMODE(p.stat().st_mode)
-             for p in tube_folder.rglob("*") if p.is_file()}
-    assert set(modes.values()) == {0o666 & ~umask}, modes
+    return 0o666 & ~umask
+
+
+def test_vessel_folder_files_get_ordinary_modes(tube_folder: Path) -> None:
+    """manifest.json and centerline.json were written 0600 (tempfile's mode), the rest 0644."""
+    assert set(file_modes(tube_folder).values()) == {ordinary_mode()}, file_modes(tube_folder)
+
+
+def test_run_folder_files_get_ordinary_modes(tmp_path: Path) -> None:
+    """config.yaml and evaluation.json were written 0600, the rest 0644."""
+    from rl_testing import pendulum_env, tiny_config
+
+    from sim4endor.rl.trainer import train
+
+    train(tiny_config("sac"), tmp_path, make_env=pendulum_env, progress=False)
+    modes = file_modes(tmp_path)
+    assert {"config.yaml", "evaluation.json"} <= set(modes)
+    assert set(modes.values()) == {ordinary_mode()}, modes
 
 
 # ---------------------------------------------------------------------------------------------
@@ -408,7 +427,7 @@ def test_a_damaged_checkpoint_is_named(tmp_path: Path, how: str, command: str,
 def test_a_garbage_replay_buffer_is_named(tmp_path: Path) -> None:
     from sim4endor.rl.algorithms import build_agent
     from sim4endor.rl.checkpoint import Progress, load_checkpoint, save_checkpoint
-    from tests.rl_testing import pendulum_env, tiny_config
+    from rl_testing import pendulum_env, tiny_config
 
     config = tiny_config("sac")
     env = pendulum_env(0)
@@ -423,14 +442,14 @@ def test_a_garbage_replay_buffer_is_named(tmp_path: Path) -> None:
         load_checkpoint(tmp_path, agent, buffer)
 
 
-def test_a_garbage_policy_file_is_named(tmp_path: Path,
-                                        capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_garbage_policy_file_is_named(tmp_path: Path) -> None:
     policy = tmp_path / "policy.pt"
     policy.write_bytes(os.urandom(300))
     from sim4endor.cli.render import PolicyLoadError, load_policy
 
-    with pytest.raises(PolicyLoadError, match=str(policy)):
+    with pytest.raises(PolicyLoadError, match=str(policy)) as raised:
         load_policy(str(policy), seed=0)
+    assert len(str(raised.value).splitlines()) == 1
 
 
 # ---------------------------------------------------------------------------------------------

@@ -82,8 +82,9 @@ def load_policy(spec: str, seed: int, env: NavigationEnvironment | None = None) 
 
     try:
         module = torch.jit.load(str(path), map_location="cpu")
-    except RuntimeError as exc:
-        raise PolicyLoadError(f"{path} is not a TorchScript policy: {exc}") from None
+    except RuntimeError as exc:  # torch's message runs over several lines: keep the first
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else "unreadable"
+        raise PolicyLoadError(f"{path} is not a TorchScript policy ({reason}).") from None
     return _torch_policy(module.eval())
 
 
@@ -249,9 +250,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("domain", help="suite domain, e.g. simplified_phantom")
     parser.add_argument("task", help="suite task, e.g. task_a")
     parser.add_argument("--policy", default="insert",
-                        help="'insert', 'random', 'expert' (scripted, reads the wire and "
+                        help="'insert' (the default), 'random', 'expert' (scripted, reads the wire and "
                              "centerline), a training run folder (its latest policy) or an "
-                             "exported TorchScript policy (.pt)")
+                             "exported TorchScript policy (.pt: a program, load only trusted "
+                             "files; a run folder loads weights only)")
     parser.add_argument("--out", type=Path, default=Path("episode.mp4"), help="video file")
     parser.add_argument("--seed", type=arg_types.seed, default=0,
                         help="task and random-policy seed")
