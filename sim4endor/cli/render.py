@@ -250,9 +250,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("domain", help="suite domain, e.g. simplified_phantom")
     parser.add_argument("task", help="suite task, e.g. task_a")
     parser.add_argument("--policy", default="insert",
-                        help="'insert' (the default), 'random', 'expert' (scripted, reads the wire and "
-                             "centerline), a training run folder (its latest policy) or an "
-                             "exported TorchScript policy (.pt: a program, load only trusted "
+                        help="'insert' (the default), 'random', 'expert' (scripted, reads the "
+                             "wire and centerline), a training run folder (its latest policy) or "
+                             "an exported TorchScript policy (.pt: a program, load only trusted "
                              "files; a run folder loads weights only)")
     parser.add_argument("--out", type=Path, default=Path("episode.mp4"), help="video file")
     parser.add_argument("--seed", type=arg_types.seed, default=0,
