@@ -82,3 +82,20 @@ def test_gymnasium_rgb_array_exits_cleanly(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     # dm_control's exit hook used to print "cannot schedule new futures after shutdown".
     assert "Error" not in result.stderr, result.stderr
+
+
+def test_a_command_run_in_process_leaves_the_backend_as_it_was(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A non-rendering command disables GL while it runs; a process that ran one from Python
+    (a test, a notebook) must still render afterwards, and its children too (the last CI run
+    failed on this: the notebook's `sim4endor render` inherited MUJOCO_GL=disable)."""
+    from sim4endor.cli import main
+
+    monkeypatch.setenv("MUJOCO_GL", "osmesa")
+    assert main(["vessel", "list"]) == 0
+    assert os.environ["MUJOCO_GL"] == "osmesa"
+    monkeypatch.delenv("MUJOCO_GL")
+    assert main(["vessel", "list"]) == 0
+    assert "MUJOCO_GL" not in os.environ
+    capsys.readouterr()
