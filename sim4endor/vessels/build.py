@@ -267,7 +267,7 @@ def check_output_folder(out_dir: Path) -> None:
         mjcf = Manifest.load(out_dir).mjcf
     except Sim4EndoRError:
         raise BuildError(
-            f"{out_dir} is not empty and not a vessel folder (it holds {entries[:3]}...); "
+            f"{out_dir} is not empty and not a vessel folder (it holds {_listing(entries)}); "
             "choose a new or empty output folder. A build replaces its folder as a whole."
         ) from None
     foreign = [e for e in entries if e not in (*_BUILD_FILES, mjcf, HULL_DIR)]
@@ -277,9 +277,15 @@ def check_output_folder(out_dir: Path) -> None:
                     if not (p.is_file() and p.name.startswith("hull_") and p.suffix == ".stl")]
     if foreign:
         raise BuildError(
-            f"{out_dir} is a vessel folder with files a build did not write ({foreign[:3]}); "
+            f"{out_dir} is a vessel folder with files a build did not write "
+            f"({_listing(foreign)}); "
             "move them out or choose another output folder: a build replaces the folder."
         )
+
+
+def _listing(names: list[str], shown: int = 3) -> str:
+    more = f" and {len(names) - shown} more" if len(names) > shown else ""
+    return ", ".join(names[:shown]) + more
 
 
 def _store_in_cache(out_dir: Path, cached: Path) -> None:
