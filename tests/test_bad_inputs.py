@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 import signal
 import stat
 import subprocess
@@ -141,36 +142,36 @@ def tube_folder(tmp_path_factory: pytest.TempPathFactory, tube_mesh: Path) -> Pa
 # Silent data loss: a build never deletes what it did not write
 
 
+def assert_build_refused(tmp_path: Path, mesh: Path, out: Path,
+                         capsys: pytest.CaptureFixture[str], *names: str) -> None:
+    """A build into ``out`` is refused naming ``out`` and ``names``; nothing under tmp_path
+    changes."""
+    before = snapshot(tmp_path)
+    status, err = run_cli(build_args(mesh, out), capsys)
+    assert_refused(status, err, str(out), *names)
+    assert snapshot(tmp_path) == before
+
+
 def test_build_refuses_a_folder_of_other_files(tmp_path: Path, tube_mesh: Path,
                                                capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "mine"
     out.mkdir()
     (out / "thesis.tex").write_text("years of work\n")
-    before = snapshot(tmp_path)
-    status, err = run_cli(build_args(tube_mesh, out), capsys)
-    assert_refused(status, err, str(out), "not a vessel folder")
-    assert snapshot(tmp_path) == before
+    assert_build_refused(tmp_path, tube_mesh, out, capsys, "not a vessel folder", "thesis.tex")
 
 
 def test_build_refuses_a_vessel_folder_with_files_added(
     tmp_path: Path, tube_mesh: Path, tube_folder: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import shutil
-
     out = tmp_path / "tube"
     shutil.copytree(tube_folder, out)
     (out / "notes.txt").write_text("my notes\n")
-    before = snapshot(tmp_path)
-    status, err = run_cli(build_args(tube_mesh, out), capsys)
-    assert_refused(status, err, str(out), "notes.txt")
-    assert snapshot(tmp_path) == before
+    assert_build_refused(tmp_path, tube_mesh, out, capsys, "notes.txt")
 
 
 def test_build_replaces_a_vessel_folder_it_wrote(
     tmp_path: Path, tube_mesh: Path, tube_folder: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import shutil
-
     out = tmp_path / "tube"
     shutil.copytree(tube_folder, out)
     status, err = run_cli(build_args(tube_mesh, out), capsys)
@@ -182,10 +183,8 @@ def test_build_refuses_an_out_that_is_a_file(tmp_path: Path, tube_mesh: Path,
                                              capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "o_file"
     out.write_text("not a folder\n")
-    before = snapshot(tmp_path)
-    status, err = run_cli(build_args(tube_mesh, out), capsys)
-    assert_refused(status, err, str(out), "not a folder")
-    assert snapshot(tmp_path) == before  # no .o_file.old left behind either
+    # Nothing changes: no .o_file.old left behind either.
+    assert_build_refused(tmp_path, tube_mesh, out, capsys, "not a folder")
 
 
 def test_an_unwritable_cache_keeps_the_build(tmp_path: Path, tube_mesh: Path,
@@ -277,8 +276,6 @@ def test_a_small_hole_on_a_bend_is_filled(tmp_path: Path) -> None:
 def test_vessel_check_finds_a_side_hole(tmp_path: Path, tube_folder: Path,
                                         capsys: pytest.CaptureFixture[str]) -> None:
     import json
-    import shutil
-
     folder = tmp_path / "tube"
     shutil.copytree(tube_folder, folder)
     lumen = trimesh.load(folder / "lumen.stl", force="mesh")
@@ -293,8 +290,6 @@ def test_vessel_check_finds_a_side_hole(tmp_path: Path, tube_folder: Path,
 @pytest.mark.parametrize("damage", ["missing", "garbage"])
 def test_vessel_check_names_a_bad_hull(tmp_path: Path, tube_folder: Path, damage: str,
                                        capsys: pytest.CaptureFixture[str]) -> None:
-    import shutil
-
     folder = tmp_path / "tube"
     shutil.copytree(tube_folder, folder)
     hull = sorted((folder / "hulls").glob("*.stl"))[0]
