@@ -250,6 +250,17 @@ def test_coronary_tortuosity_follows_the_curvature_setting() -> None:
     assert np.all(kappa * winding.centerline.radii <= 0.4 + 0.05)
 
 
+def test_coronary_root_is_straight_where_the_wire_starts(tree: GeneratedAnatomy) -> None:
+    """The first ``inlet_straight`` of the root lies on the inlet axis (+x from the origin),
+    so the straight wire pushed past the sheath at an episode start is inside the lumen."""
+    graph, config = tree.centerline, CoronaryTreeConfig()
+    ostium = graph.nodes[(graph.branch == 0) & (graph.nodes[:, 0] <= config.inlet_straight)]
+    assert len(ostium) > 3 and ostium[:, 0].max() > 0.9 * config.inlet_straight
+    assert np.abs(ostium[:, 1:]).max() < 1e-9
+    with pytest.raises(GeneratorConfigError, match="inlet_straight"):
+        CoronaryTreeConfig(inlet_straight=CoronaryTreeConfig().root_length)
+
+
 def test_coronary_resolution_reaches_about_the_target_face_count() -> None:
     config = CoronaryTreeConfig(levels=2, resolution=MeshResolution(target_faces=60_000))
     anatomy = coronary_tree(config, seed=0)

@@ -58,6 +58,11 @@ class CoronaryTreeConfig:
             thicknesses keep the walls built around them apart.
         inlet_keep_out: Radius around the axis behind the inlet plane (where the introducer
             sheath sits) that branches keep out of (m), in addition to ``clearance``.
+        inlet_straight: Straight axis length after the inlet (m), where the wire starts: the
+            driver pushes 8-9 mm of straight wire, pre-bent tip included, past the sheath at
+            an episode start, and a root that curved within that length put the tip inside
+            the wall (pool tree 6 then blew up at the second step with no action). Like the
+            ostial segment where a guide catheter seats.
         attempts: Redraws of a child before it is left out.
         resolution: Mesh and centerline sampling.
     """
@@ -77,6 +82,7 @@ class CoronaryTreeConfig:
     max_curvature_ratio: float = 0.4
     clearance: float = 1.6e-3
     inlet_keep_out: float = 3e-3
+    inlet_straight: float = 12e-3
     attempts: int = 30
     resolution: MeshResolution = field(default_factory=MeshResolution)
 
@@ -91,6 +97,8 @@ class CoronaryTreeConfig:
             (self.curvature_rms >= 0 and self.curvature_length > 0, "curvature must be >= 0"),
             (0 < self.max_curvature_ratio < 1, "max_curvature_ratio must be in (0, 1)"),
             (min(self.clearance, self.inlet_keep_out) >= 0, "clearance and inlet_keep_out >= 0"),
+            (0 <= self.inlet_straight < self.root_length,
+             "inlet_straight must be in [0, root_length)"),
             (self.attempts >= 1, "attempts must be >= 1"),
         )
         for ok, message in checks:
@@ -175,8 +183,10 @@ def coronary_tree(config: CoronaryTreeConfig = CoronaryTreeConfig(), seed: int =
     rng = np.random.default_rng(seed)
     start = Frame.start((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
     root_end = max(config.taper * config.root_radius, config.min_radius)
-    plans = [BranchPlan("b0", start, tortuous_path(config.root_length, config.root_radius,
-                                                   config, rng), config.root_radius, root_end)]
+    ostium = (Straight(config.inlet_straight),) if config.inlet_straight > 0 else ()
+    root_path = ostium + tortuous_path(config.root_length - config.inlet_straight,
+                                       config.root_radius, config, rng)
+    plans = [BranchPlan("b0", start, root_path, config.root_radius, root_end)]
     depth = [0]
     children: dict[int, int] = {}
     index = 0
