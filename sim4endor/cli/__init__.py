@@ -60,10 +60,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         # a vessel build).
         with _gl.backend_for(renders=getattr(args, "renders", False)):
             return int(args.func(args) or 0)
-    except Sim4EndoRError as exc:
-        print(f"sim4endor {args.command}: error: {exc}", file=sys.stderr)  # noqa: T201
-        return 2
-    except OSError as exc:  # a file or folder the command cannot read or write: names the path
+    # OSError: a file or folder the command cannot read or write; its message names the path.
+    except (Sim4EndoRError, OSError) as exc:
         print(f"sim4endor {args.command}: error: {exc}", file=sys.stderr)  # noqa: T201
         return 2
     except KeyboardInterrupt:

@@ -211,7 +211,7 @@ class NavigationTask(base.Task):
         if a.dtype.kind not in "iuf":  # not bools, text or objects, which numpy would cast
             raise InvalidActionError(
                 f"Action must be two numbers [insertion, rotation] in [-1, 1], got "
-                f"{np.asarray(action).tolist()!r} (dtype {a.dtype})."
+                f"{a.tolist()!r} (dtype {a.dtype})."
             )
         a = a.astype(np.float64, copy=False)
         if a.shape != (2,):

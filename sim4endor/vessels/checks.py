@@ -26,7 +26,7 @@ from scipy.spatial import cKDTree
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.axis import AxisSamples, sample_axis
 from sim4endor.vessels.centerline import CenterlineGraph
-from sim4endor.vessels.meshio import boundary_loops
+from sim4endor.vessels.meshio import boundary_loops, loop_perimeter
 from sim4endor.vessels.walls import Hull, convex_hull
 
 if TYPE_CHECKING:
@@ -169,8 +169,7 @@ def stray_openings(
         radius = float(np.linalg.norm(points - centre, axis=1).mean())
         nearest = float(np.linalg.norm(ends - centre, axis=1).min()) if len(ends) else np.inf
         if nearest > reach * radius:
-            perimeter = float(np.linalg.norm(points - np.roll(points, 1, axis=0), axis=1).sum())
-            stray.append(Opening(loop, centre, perimeter))
+            stray.append(Opening(loop, centre, loop_perimeter(points)))
     return stray
 
 

@@ -130,6 +130,11 @@ def boundary_loops(mesh: trimesh.Trimesh) -> list[NDArray[np.int64]]:
     return loops
 
 
+def loop_perimeter(points: FloatArray) -> float:
+    """Length of the closed polygon through ``points`` (in their units)."""
+    return float(np.linalg.norm(points - np.roll(points, 1, axis=0), axis=1).sum())
+
+
 def _loop_is_side_hole(mesh: trimesh.Trimesh, loop: NDArray[np.int64]) -> bool:
     """True when the loop lies in the surface (a hole), False when it is a tube cross-section."""
     points = mesh.vertices[loop]
@@ -189,6 +194,12 @@ def _fill_loop(mesh: trimesh.Trimesh, loop: NDArray[np.int64]) -> trimesh.Trimes
     )
 
 
+def _fill_loops(mesh: trimesh.Trimesh, loops: list[NDArray[np.int64]]) -> trimesh.Trimesh:
+    for loop in loops:
+        mesh = _fill_loop(mesh, loop)
+    return mesh
+
+
 def close_openings(prepared: PreparedLumen, loops: list[NDArray[np.int64]]) -> PreparedLumen:
     """Returns ``prepared`` with some of its open ends (``loops``, from ``end_loops``) filled.
 
@@ -196,9 +207,7 @@ def close_openings(prepared: PreparedLumen, loops: list[NDArray[np.int64]]) -> P
     :func:`sim4endor.vessels.checks.stray_openings`); they count as filled holes in the report.
     Filling appends vertices, so the indices of the other loops stay valid.
     """
-    mesh = prepared.mesh
-    for loop in loops:
-        mesh = _fill_loop(mesh, loop)
+    mesh = _fill_loops(prepared.mesh, loops)
     closed = {id(loop) for loop in loops}
     report = dataclasses.replace(
         prepared.report,
@@ -213,10 +222,7 @@ def close_openings(prepared: PreparedLumen, loops: list[NDArray[np.int64]]) -> P
 
 def capped(prepared: PreparedLumen) -> trimesh.Trimesh:
     """Returns the lumen with its open ends closed by fans (for voxelisation)."""
-    mesh = prepared.mesh
-    for loop in prepared.end_loops:
-        mesh = _fill_loop(mesh, loop)
-    return mesh
+    return _fill_loops(prepared.mesh, prepared.end_loops)
 
 
 def prepare_lumen(
@@ -294,7 +300,7 @@ def prepare_lumen(
         if len(loop) < 3:
             raise MeshInputError(f"{source} has a non-manifold boundary; repair it in a mesh tool.")
         points = work.vertices[loop]
-        perimeter = float(np.linalg.norm(points - np.roll(points, 1, axis=0), axis=1).sum())
+        perimeter = loop_perimeter(points)
         if _loop_is_side_hole(work, loop):
             if perimeter > max_hole_perimeter * radius:
                 raise MeshInputError(
