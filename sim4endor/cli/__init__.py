@@ -19,7 +19,7 @@ from sim4endor.errors import Sim4EndoRError
 
 # Subcommand modules, imported lazily so `sim4endor --help` stays fast.
 _SUBCOMMAND_MODULES: tuple[str, ...] = (
-    "vessel", "train", "evaluate", "table", "bench", "view", "render",
+    "vessel", "train", "evaluate", "export", "table", "bench", "view", "render",
 )
 
 

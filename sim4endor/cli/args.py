@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
 
-from sim4endor.rl.config import MAX_SEED
+from sim4endor.rl.config import MAX_SEED, EnvConfig
 
 
 def positive_int(text: str) -> int:
@@ -28,3 +32,61 @@ def _int(text: str) -> int:
         return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+
+
+def add_task_arguments(parser: argparse.ArgumentParser, *, evaluation_split: bool = False) -> None:
+    """Adds the domain-specific task arguments (each is left out unless given).
+
+    Args:
+        parser: The subcommand's parser.
+        evaluation_split: Also add ``--eval-pool-seed`` (commands that train and evaluate).
+    """
+    group = parser.add_argument_group(
+        "task arguments", "given only where the domain takes them (the error lists the valid ones)"
+    )
+    group.add_argument("--vessel", metavar="NAME_OR_DIR",
+                       help="domain vessel: a vessel name or a folder `sim4endor vessel build` "
+                            "wrote")
+    group.add_argument("--target", help="domain vessel: the target label, e.g. T1")
+    group.add_argument("--wire", metavar="PRESET",
+                       help="guidewire preset, e.g. workhorse (default: the domain's wire)")
+    group.add_argument("--pool-seed", type=seed, metavar="SEED",
+                       help="generated trees: seed of the first training tree")
+    group.add_argument("--pool-size", type=positive_int, metavar="N",
+                       help="generated trees: number of training trees")
+    if evaluation_split:
+        group.add_argument("--eval-pool-seed", type=seed, metavar="SEED",
+                           help="generated trees: seed of the first evaluation tree (held out "
+                                "when at least --pool-size away from --pool-seed)")
+
+
+def task_arguments(args: argparse.Namespace) -> dict[str, Any]:
+    """Returns the task arguments given on the command line, as ``EnvConfig`` field values.
+
+    A vessel given as an existing folder is stored as an absolute path, so a run's saved
+    config still finds it from another working directory.
+    """
+    names = ("vessel", "target", "wire", "pool_seed", "pool_size", "eval_pool_seed")
+    given = {name: getattr(args, name, None) for name in names}
+    if given["vessel"] is not None and Path(given["vessel"]).exists():
+        given["vessel"] = str(Path(given["vessel"]).resolve())
+    return {name: value for name, value in given.items() if value is not None}
+
+
+def env_overrides(values: dict[str, Any]) -> list[str]:
+    """``env.FIELD=VALUE`` overrides of ``values``; JSON-quoted, so a path stays text."""
+    return [f"env.{name}={json.dumps(value)}" for name, value in values.items()]
+
+
+def env_config(args: argparse.Namespace, base: EnvConfig | None = None) -> EnvConfig:
+    """The environment a viewing command names: ``base`` (e.g. a run's) with the flags given.
+
+    Reads ``args.domain``, ``args.task``, ``args.reward`` and the task arguments; a flag left
+    out keeps ``base``'s value (default: :class:`~sim4endor.rl.config.EnvConfig`'s).
+    """
+    fields = task_arguments(args)
+    if args.domain is not None:
+        fields.update(domain=args.domain, task=args.task)
+    if args.reward is not None:
+        fields["reward"] = args.reward
+    return dataclasses.replace(base or EnvConfig(), **fields)

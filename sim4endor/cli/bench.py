@@ -25,6 +25,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--workers", type=arg_types.positive_int,
                         help="parallel runs (local backend)")
     parser.add_argument(
+        "--set", dest="overrides", action="append", default=[], metavar="SECTION.FIELD=VALUE",
+        help="override a field of every run's config after CONFIG's overrides, e.g. "
+             "--set env.wire=workhorse (repeatable)",
+    )
+    parser.add_argument(
         "--report-only", action="store_true", help="only regenerate the table and figures"
     )
     parser.set_defaults(func=run)
@@ -39,6 +44,8 @@ def run(args: argparse.Namespace) -> int:
     bench = load_bench_config(args.config)
     if args.workers is not None:
         bench = dataclasses.replace(bench, workers=args.workers)
+    if args.overrides:
+        bench = dataclasses.replace(bench, overrides=(*bench.overrides, *args.overrides))
     if args.report_only:
         path = write_report(bench, args.out, None, args.backend)
     else:

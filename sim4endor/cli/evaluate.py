@@ -25,6 +25,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="episodes (default: 10)")
     parser.add_argument("--seed", type=arg_types.seed, help="evaluation seed (default: the run's)")
     parser.add_argument("--json", action="store_true", help="print one JSON line")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.set_defaults(func=run)
 
 
@@ -35,7 +36,8 @@ def run(args: argparse.Namespace) -> int:
     from sim4endor.rl.runs import evaluate_run
 
     torch.set_num_threads(1)  # small networks: one thread is fastest and leaves cores free
-    metrics = evaluate_run(args.run_dir, trials=args.trials, seed=args.seed)
+    metrics = evaluate_run(args.run_dir, trials=args.trials, seed=args.seed,
+                           progress=not args.no_progress)
     if args.json:
         print(json.dumps(metrics))  # noqa: T201
     else:

@@ -1,4 +1,4 @@
-"""``sim4endor render DOMAIN TASK --policy ... --out episode.mp4``: a video, headless.
+"""``sim4endor render [DOMAIN TASK] --policy ... --out episode.mp4``: a video, headless.
 
 Rendering uses an offscreen OpenGL context: ``MUJOCO_GL`` defaults to ``osmesa`` here (set
 ``MUJOCO_GL=egl`` for a GPU). The camera looks straight down on the vessel (the phantoms lie
@@ -19,6 +19,7 @@ import numpy as np
 
 from sim4endor.cli import args as arg_types
 from sim4endor.errors import Sim4EndoRError
+from sim4endor.rl.config import EnvConfig
 
 if TYPE_CHECKING:
     import mujoco
@@ -202,10 +203,12 @@ def render_episode(args: argparse.Namespace) -> int:
     _gl.require_rendering()
     import imageio.v2 as imageio
     from dm_control.mujoco import MovableCamera, TextOverlay
+    from tqdm.auto import tqdm
 
     from sim4endor import suite
 
-    env = suite.load(args.domain, args.task, {"random": args.seed, "reward": args.reward})
+    config = _env_config(args)
+    env = suite.load(config.domain, config.task, config.task_kwargs(args.seed))
     policy = load_policy(args.policy, args.seed, env)
     timestep = env.reset()
 
@@ -223,6 +226,8 @@ def render_episode(args: argparse.Namespace) -> int:
 
     frames: list[Any] = []
     total, step = 0.0, 0
+    bar = tqdm(total=args.max_steps, unit="steps", desc=f"render {config.domain}/{config.task}",
+               disable=args.no_progress)
     while True:
         reward = 0.0 if timestep.reward is None else float(timestep.reward)
         total += reward
@@ -232,23 +237,56 @@ def render_episode(args: argparse.Namespace) -> int:
             break
         timestep = env.step(policy(state_vector(timestep.observation)))
         step += 1
+        bar.update()
+    bar.close()
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
         staging = Path(tmp) / f"partial{out.suffix}"
         imageio.mimwrite(staging, frames, fps=args.fps)
         staging.replace(out)
+    print(f"{out}: {episode_outcome(env, timestep, step)}, return {total:+.2f}")  # noqa: T201
     env.physics.free()  # release the GL context now, not in dm_control's atexit hook
     return 0
+
+
+def episode_outcome(env: NavigationEnvironment, timestep: Any, steps: int) -> str:
+    """How an episode ended, in words: success, the failure's reason, time limit or step cap."""
+    info = env.task.step_info() if steps else {}
+    seconds = f"{steps} steps ({env.physics.time():.2f} s)"
+    if info.get("is_success"):
+        return f"success after {seconds}"
+    if info.get("failure"):
+        return f"failure ({info['failure']}) after {seconds}"
+    if timestep.last():
+        return f"time limit after {seconds}"
+    return f"stopped at --max-steps after {seconds}"
+
+
+def _env_config(args: argparse.Namespace) -> EnvConfig:
+    """The environment to render: the flags', on top of the run's when --policy is a run."""
+    from sim4endor.rl.runs import run_config
+
+    if (args.domain is None) != (args.task is None):
+        raise RenderArgumentError("Name both DOMAIN and TASK, or neither (with a run folder "
+                                  "as --policy, whose task is then rendered).")
+    base = run_config(Path(args.policy)).env if Path(args.policy).is_dir() else None
+    if args.domain is None and base is None:
+        raise RenderArgumentError(f"Name a DOMAIN and TASK to render --policy {args.policy} "
+                                  "in (only a run folder brings its own).")
+    return arg_types.env_config(args, base)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Adds the ``render`` subcommand."""
     parser = subparsers.add_parser(
         "render", help="write a video of one episode (headless)",
-        description="Run one episode with a policy and write a top-down video (mp4 or gif).",
+        description="Run one episode with a policy and write a top-down video (mp4 or gif); "
+                    "prints the file and how the episode ended.",
     )
-    parser.add_argument("domain", help="suite domain, e.g. simplified_phantom")
-    parser.add_argument("task", help="suite task, e.g. task_a")
+    parser.add_argument("domain", nargs="?",
+                        help="suite domain, e.g. simplified_phantom (default with a run folder "
+                             "as --policy: the run's)")
+    parser.add_argument("task", nargs="?", help="suite task, e.g. task_a")
     parser.add_argument("--policy", default="insert",
                         help="'insert' (the default), 'random', 'expert' (scripted, reads the "
                              "wire and centerline), a training run folder (its latest policy) or "
@@ -257,7 +295,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", type=Path, default=Path("episode.mp4"), help="video file")
     parser.add_argument("--seed", type=arg_types.seed, default=0,
                         help="task and random-policy seed")
-    parser.add_argument("--reward", choices=("manifold", "euclidean"), default="manifold")
+    parser.add_argument("--reward", choices=("manifold", "euclidean"),
+                        help="progress distance (default: manifold, or the run's)")
+    arg_types.add_task_arguments(parser)
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--max-steps", type=arg_types.positive_int, default=400,
                         help="stop after this many steps")
     parser.add_argument("--width", type=arg_types.positive_int, default=640)

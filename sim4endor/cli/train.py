@@ -30,6 +30,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=arg_types.seed, help="random seed (default: 0)")
     parser.add_argument("--envs", type=arg_types.positive_int,
                         help="parallel environments (default: 1)")
+    arg_types.add_task_arguments(parser, evaluation_split=True)
     parser.add_argument("--config", type=Path, help="YAML config file (e.g. experiments/sac/)")
     parser.add_argument(
         "--set",
@@ -58,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
         "env.num_envs": args.envs,
     }
     overrides = [f"{key}={value}" for key, value in flags.items() if value is not None]
+    overrides += arg_types.env_overrides(arg_types.task_arguments(args))
     overrides += args.overrides
     if args.config:
         config = load_config(args.config, overrides, algorithm=args.algorithm)

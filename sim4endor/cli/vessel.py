@@ -44,11 +44,14 @@ def _print(line: str) -> None:
 
 def _summary(vessel: Any) -> str:
     checks = vessel.manifest.checks
+    inlet = ", ".join(f"{1e3 * v:.1f}" for v in vessel.manifest.inlet.position)
+    choice = vessel.manifest.build.get("inlet_choice")
     return (
         f"{vessel.root}: {vessel.manifest.hull_count} hulls, lumen open "
         f"{checks.get('lumen_open', float('nan')):.4f}, wall closed "
         f"{checks.get('wall_closed', float('nan')):.4f}, build "
-        f"{checks.get('build_time_s', float('nan')):.1f} s, targets {sorted(vessel.targets)}"
+        f"{checks.get('build_time_s', float('nan')):.1f} s, inlet ({inlet}) mm"
+        f"{f' ({choice})' if choice else ''}, targets {sorted(vessel.targets)}"
     )
 
 

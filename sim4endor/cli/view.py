@@ -1,4 +1,4 @@
-"""``sim4endor view DOMAIN TASK``: the MuJoCo viewer with keyboard teleoperation.
+"""``sim4endor view DOMAIN TASK [task arguments]``: the MuJoCo viewer with keyboard teleoperation.
 
 Keys (the viewer window must have focus):
 
@@ -148,7 +148,8 @@ def run_viewer(args: argparse.Namespace) -> int:
 
     from sim4endor import suite
 
-    env = suite.load(args.domain, args.task, {"random": args.seed, "reward": args.reward})
+    config = arg_types.env_config(args)
+    env = suite.load(config.domain, config.task, config.task_kwargs(args.seed))
     session = TeleopSession(env, record=args.record is not None)
     physics = env.physics
     period = env.control_timestep()
@@ -186,7 +187,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("domain", help="suite domain, e.g. simplified_phantom")
     parser.add_argument("task", help="suite task, e.g. task_a")
     parser.add_argument("--seed", type=arg_types.seed, default=0)
-    parser.add_argument("--reward", choices=("manifold", "euclidean"), default="manifold")
+    parser.add_argument("--reward", choices=("manifold", "euclidean"),
+                        help="progress distance (default: manifold)")
+    arg_types.add_task_arguments(parser)
     parser.add_argument("--record", type=Path, default=None,
                         help="save the demonstration to this .npz file")
     parser.set_defaults(func=run_viewer, renders=True)

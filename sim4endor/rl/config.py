@@ -11,6 +11,7 @@ field can be overridden with a ``section.field=value`` string (see :func:`apply_
 from __future__ import annotations
 
 import dataclasses
+import types
 import typing
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -40,7 +41,11 @@ def _check(config: object, section: str, **rules: tuple[str, ...]) -> None:
 
 @dataclasses.dataclass(frozen=True)
 class EnvConfig:
-    """Which environment to train on.
+    """Which environment to train on, with the task arguments of its domain.
+
+    The domain-specific fields are ``None`` (not given) unless the domain takes them; the
+    suite refuses one the domain does not take, naming the valid ones
+    (:func:`sim4endor.suite.load`).
 
     Attributes:
         domain: suite domain, e.g. ``simplified_phantom``.
@@ -51,6 +56,16 @@ class EnvConfig:
             ``[tip_position, tip_velocity]``, e.g. ``["rotation"]`` (rad): the paper's state
             cannot see the accumulated wire rotation, whose limit ends episodes. Add one
             ``network.observation_scale`` factor per extra entry.
+        vessel: domain ``vessel``: a vessel name or the folder ``sim4endor vessel build``
+            wrote (stored as an absolute path, so the run can be evaluated from anywhere).
+        target: domain ``vessel``: the target label, e.g. ``T1``.
+        wire: a guidewire preset of :mod:`sim4endor.models.wires` (``None``: the domain's
+            default wire).
+        pool_seed: generated-tree domains: seed of the first training tree.
+        pool_size: generated-tree domains: number of training trees.
+        eval_pool_seed: generated-tree domains: seed of the first evaluation tree; a seed at
+            least ``pool_size`` away from ``pool_seed`` gives a held-out split (``None``:
+            evaluate on the training trees).
     """
 
     domain: str = "simplified_phantom"
@@ -58,9 +73,35 @@ class EnvConfig:
     reward: Literal["manifold", "euclidean"] = "manifold"
     num_envs: int = 1
     extra_observations: tuple[str, ...] = ()
+    vessel: str | None = None
+    target: str | None = None
+    wire: str | None = None
+    pool_seed: int | None = None
+    pool_size: int | None = None
+    eval_pool_seed: int | None = None
 
     def __post_init__(self) -> None:
-        _check(self, "env", positive=("num_envs",))
+        _check(self, "env", positive=("num_envs", "pool_size"),
+               non_negative=("pool_seed", "eval_pool_seed"))
+        if self.eval_pool_seed is not None and self.pool_size is None:
+            raise ConfigError("env.eval_pool_seed needs env.pool_size (the training trees' "
+                              "count), so the two splits can be told apart.")
+
+    def task_kwargs(self, seed: int, *, evaluation: bool = False) -> dict[str, Any]:
+        """Returns the ``suite.load`` task_kwargs of this environment, seeded with ``seed``.
+
+        Args:
+            seed: The task's random seed.
+            evaluation: Use the evaluation split of generated trees (``eval_pool_seed``).
+        """
+        kwargs: dict[str, Any] = {"random": seed, "reward": self.reward,
+                                  "observations": self.extra_observations}
+        pool_seed = self.eval_pool_seed if evaluation and self.eval_pool_seed is not None \
+            else self.pool_seed
+        given = {"vessel": self.vessel, "target": self.target, "wire": self.wire,
+                 "pool_seed": pool_seed, "pool_size": self.pool_size}
+        kwargs.update({key: value for key, value in given.items() if value is not None})
+        return kwargs
 
 
 @dataclasses.dataclass(frozen=True)
@@ -326,6 +367,9 @@ def _merge(obj: Any, data: Mapping[str, Any], where: str) -> Any:
 
 def _coerce(value: Any, hint: Any, where: str) -> Any:
     origin = typing.get_origin(hint)
+    if origin is types.UnionType:  # only `X | None` fields: None, or a value read as X
+        (kind,) = [arg for arg in typing.get_args(hint) if arg is not type(None)]
+        return None if value is None else _coerce(value, kind, where)
     if origin is Literal:
         if value not in typing.get_args(hint):
             raise ConfigError(f"{where}={value!r}; choose one of {list(typing.get_args(hint))}.")

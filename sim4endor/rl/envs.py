@@ -17,30 +17,33 @@ from sim4endor.rl.config import EnvConfig
 EnvFactory = Callable[[int], EnvBase]
 
 
-def sim4endor_env(
-    domain: str, task: str, reward: str, seed: int, extra_observations: tuple[str, ...] = ()
-) -> EnvBase:
-    """Returns the TorchRL env of a sim4endor task (default action scaling).
+def sim4endor_env(config: EnvConfig, seed: int, *, evaluation: bool = False) -> EnvBase:
+    """Returns the TorchRL env of the sim4endor task ``config`` names (default action scaling).
 
     Its ``observation`` is ``[tip_position (m), tip_velocity (m/s), *extra_observations]``
     and each step reports the reward terms and diagnostics (``is_success``, ``wall_force``,
     ...) beside it.
+
+    Args:
+        config: Domain, task and task arguments.
+        seed: The task's seed.
+        evaluation: Use the evaluation split of generated trees (``config.eval_pool_seed``).
     """
     from sim4endor.envs import make_torchrl_env
 
-    task_kwargs = {"random": seed, "reward": reward, "observations": extra_observations}
-    return with_episode_return(make_torchrl_env(domain, task, task_kwargs=task_kwargs))
+    task_kwargs = config.task_kwargs(seed, evaluation=evaluation)
+    return with_episode_return(make_torchrl_env(config.domain, config.task,
+                                                task_kwargs=task_kwargs))
 
 
-def env_factory(config: EnvConfig) -> EnvFactory:
-    """Returns the picklable factory of the sim4endor task named by ``config``."""
-    return functools.partial(
-        sim4endor_env,
-        config.domain,
-        config.task,
-        config.reward,
-        extra_observations=config.extra_observations,
-    )
+def env_factory(config: EnvConfig, *, evaluation: bool = False) -> EnvFactory:
+    """Returns the picklable factory of the sim4endor task named by ``config``.
+
+    Args:
+        config: Domain, task and task arguments.
+        evaluation: Build the evaluation split's environments (held-out generated trees).
+    """
+    return functools.partial(sim4endor_env, config, evaluation=evaluation)
 
 
 def with_episode_return(env: EnvBase) -> EnvBase:

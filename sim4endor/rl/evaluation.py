@@ -19,6 +19,7 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 from torchrl.envs import EnvBase, ExplorationType, set_exploration_type
+from tqdm.auto import tqdm
 
 from sim4endor.rl.metrics import Episode
 from sim4endor.tasks import FAILURES
@@ -60,17 +61,22 @@ def rollout_episodes(
     max_steps: int,
     seed: int,
     keys: EpisodeKeys = EpisodeKeys(),
+    progress: bool = False,
 ) -> list[Episode]:
     """Runs ``trials`` deterministic episodes of ``policy`` (its mode, no exploration noise).
 
     The env is reseeded with ``seed`` first, so two calls see the same start states.
+    ``progress`` shows a bar counting episodes and successes.
     """
     env.set_seed(seed)
-    episodes = []
-    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+    episodes: list[Episode] = []
+    bar = tqdm(total=trials, unit="episodes", desc="evaluate", disable=not progress)
+    with bar, torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(trials):
             rollout = env.rollout(max_steps, policy, break_when_any_done=True)
             episodes.append(episode_from_rollout(rollout, keys))
+            bar.update()
+            bar.set_postfix(success=f"{sum(e.success for e in episodes)}/{len(episodes)}")
     return episodes
 
 

@@ -18,16 +18,25 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import torch
 from torch import nn
 
-from sim4endor._atomic import atomic_write_text
+from sim4endor._atomic import atomic_write_bytes, atomic_write_text
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.algorithms import Agent
 from sim4endor.rl.config import TrainConfig
 from sim4endor.rl.envs import EnvFactory
 from sim4endor.rl.runs import load_agent
+from sim4endor.rl.trainer import CONFIG_FILE
+
+#: The exported files.
+POLICY_FILE, CONTRACT_FILE, ONNX_FILE = "policy.pt", "policy.json", "policy.onnx"
+
+
+class ExportError(Sim4EndoRError, ValueError):
+    """The source of an export is neither a training run nor an exported policy."""
 
 
 class _SquashedPolicy(nn.Module):
@@ -66,22 +75,50 @@ def deterministic_policy(config: TrainConfig, agent: Agent) -> nn.Module:
 
 
 def export_policy(
-    run_dir: Path,
+    source: Path,
     out_dir: Path,
     *,
     onnx: bool = False,
     make_env: EnvFactory | None = None,
 ) -> list[Path]:
-    """Exports the latest policy of a training run (see :func:`export_agent`).
+    """Exports the latest policy of a training run, or re-exports an exported policy.
 
     Args:
-        run_dir: a training run folder.
+        source: a training run folder (see :func:`export_agent`), or a folder (or its
+            ``policy.pt``) this function wrote before: its ``policy.pt`` and ``policy.json``
+            are copied and, with ``onnx``, converted.
         out_dir: folder for the exported files.
         onnx: also export ONNX (needs the ``onnx`` extra).
         make_env: ``seed -> env`` factory; defaults to the run's task (read for the specs).
+
+    Raises:
+        ExportError: when ``source`` is neither.
     """
-    config, agent = load_agent(run_dir, make_env)
+    source = Path(source)
+    folder = source.parent if source.name == POLICY_FILE else source
+    if (folder / POLICY_FILE).is_file() and (folder / CONTRACT_FILE).is_file():
+        return _reexport(folder, Path(out_dir), onnx=onnx)
+    if source.is_dir() and not (source / CONFIG_FILE).is_file():
+        raise ExportError(
+            f"{source} is neither a training run folder (no {CONFIG_FILE}) nor an exported "
+            f"policy ({POLICY_FILE} and {CONTRACT_FILE})."
+        )
+    config, agent = load_agent(source, make_env)
     return export_agent(config, agent, out_dir, onnx=onnx)
+
+
+def _reexport(folder: Path, out_dir: Path, *, onnx: bool) -> list[Path]:
+    """Copies an exported policy and, if asked, converts its TorchScript program to ONNX."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = [out_dir / POLICY_FILE, out_dir / CONTRACT_FILE]
+    for path in paths:
+        if path.resolve() != (folder / path.name).resolve():
+            atomic_write_bytes(path, (folder / path.name).read_bytes())
+    if onnx:
+        module = torch.jit.load(str(folder / POLICY_FILE), map_location="cpu")
+        inputs = json.loads((folder / CONTRACT_FILE).read_text())["observation"]["shape"][-1]
+        paths.append(_export_onnx(module, torch.zeros(1, int(inputs)), out_dir / ONNX_FILE))
+    return paths
 
 
 def export_agent(
@@ -99,24 +136,76 @@ def export_agent(
     out_dir.mkdir(parents=True, exist_ok=True)
     with torch.no_grad():
         scripted = torch.jit.trace(policy, (example,))
-    script_path = out_dir / "policy.pt"
+    script_path = out_dir / POLICY_FILE
     tmp = script_path.with_name(".policy.pt.tmp")
     scripted.save(str(tmp))
     tmp.replace(script_path)
-    contract = {
-        "algorithm": config.algorithm,
-        "domain": config.env.domain,
-        "task": config.env.task,
-        "input": f"observation float32 (..., {obs_dim}); the tasks' default state is "
-        "[tip position [m] (3), tip velocity [m/s] (3)]",
-        "output": "action float32 (..., 2): [delta_insertion, delta_rotation] in [-1, 1]",
-        "scaling": "multiply by ActionConfig.max_insertion_step [m] and max_rotation_step [rad]",
-    }
-    paths = [script_path, out_dir / "policy.json"]
+    contract = policy_contract(config, obs_dim)
+    paths = [script_path, out_dir / CONTRACT_FILE]
     atomic_write_text(paths[1], json.dumps(contract, indent=2) + "\n")
     if onnx:
-        paths.append(_export_onnx(policy, example, out_dir / "policy.onnx"))
+        paths.append(_export_onnx(policy, example, out_dir / ONNX_FILE))
     return paths
+
+
+def policy_contract(config: TrainConfig, obs_dim: int) -> dict[str, Any]:
+    """Everything a robot-side consumer needs besides the network, with units (``policy.json``).
+
+    The observation scale factors are listed for reference only: they are inside the network,
+    which takes the observation in SI units.
+    """
+    from sim4endor.tasks.config import DEFAULT_OBSERVATIONS, ActionConfig
+
+    # Training never changes the task's action settings (EnvConfig has none): the defaults.
+    action = ActionConfig()
+    names = tuple(dict.fromkeys(DEFAULT_OBSERVATIONS + config.env.extra_observations))
+    entries = _observation_layout(names, obs_dim)
+    return {
+        "format": "sim4endor-policy/1",
+        "algorithm": config.algorithm,
+        "environment": {
+            "domain": config.env.domain,
+            "task": config.env.task,
+            "task_kwargs": config.env.task_kwargs(config.seed),
+            "frame": "the vessel model's frame (for a built vessel folder: its mesh's "
+                     "coordinates converted to metres)",
+        },
+        "observation": {
+            "name": "observation", "dtype": "float32", "shape": ["batch (optional)", obs_dim],
+            "entries": entries,
+            "scale_inside_network": list(config.network.observation_scale),
+        },
+        "action": {
+            "name": "action", "dtype": "float32", "shape": ["batch (optional)", 2],
+            "bounds": [-1.0, 1.0],
+            "entries": [
+                {"name": "delta_insertion", "index": 0, "scale": action.max_insertion_step,
+                 "unit": "m", "meaning": "insertion step = action[0] * scale; > 0 pushes in"},
+                {"name": "delta_rotation", "index": 1, "scale": action.max_rotation_step,
+                 "unit": "rad", "meaning": "roll step about the wire axis = action[1] * scale"},
+            ],
+            "control_period_s": action.control_timestep,
+        },
+    }
+
+
+def _observation_layout(names: tuple[str, ...], obs_dim: int) -> list[dict[str, Any]] | None:
+    """Slices of the observation vector, or None when it is not a sim4endor task's (tests)."""
+    from sim4endor.tasks.config import OBSERVATION_UNITS
+
+    sizes = {name: OBSERVATION_UNITS[name][1] for name in names}
+    unknown = [name for name, size in sizes.items() if size is None]
+    if len(unknown) == 1:  # the wire's vertex count: whatever the others leave
+        sizes[unknown[0]] = obs_dim - sum(size or 0 for size in sizes.values())
+    counts = [size or 0 for size in sizes.values()]
+    if len(unknown) > 1 or sum(counts) != obs_dim or min(counts) < 1:
+        return None
+    layout, start = [], 0
+    for name, size in zip(names, counts, strict=True):
+        layout.append({"name": name, "slice": [start, start + size],
+                       "unit": OBSERVATION_UNITS[name][0]})
+        start += size
+    return layout
 
 
 def _export_onnx(policy: nn.Module, example: torch.Tensor, path: Path) -> Path:
@@ -127,8 +216,17 @@ def _export_onnx(policy: nn.Module, example: torch.Tensor, path: Path) -> Path:
             "ONNX export needs the onnx extra: pip install 'sim4endor[onnx]'; "
             "the TorchScript policy.pt was written."
         ) from exc
-    torch.onnx.export(
-        policy, (example,), str(path), input_names=["observation"], output_names=["action"],
-        dynamic_axes={"observation": {0: "batch"}, "action": {0: "batch"}},
-    )
+    staging = path.with_name(f".{path.name}.tmp")  # never a half-written policy.onnx
+    batch: dict[str, Any]
+    if isinstance(policy, torch.jit.ScriptModule):
+        # A loaded TorchScript program (a re-export) only converts with the TorchScript-based
+        # exporter; the default one traces Python modules.
+        batch = {"dynamo": False,
+                 "dynamic_axes": {"observation": {0: "batch"}, "action": {0: "batch"}}}
+    else:
+        # verbose=False: the exporter's progress lines would mix into the CLI's output.
+        batch = {"dynamic_shapes": ({0: torch.export.Dim("batch")},), "verbose": False}
+    torch.onnx.export(policy, (example,), str(staging), input_names=["observation"],
+                      output_names=["action"], **batch)
+    staging.replace(path)
     return path

@@ -1,4 +1,4 @@
-"""Learning-curve figures from run folders' CSV logs (headless matplotlib)."""
+"""Learning-curve figures from run folders' logs, CSV or TensorBoard (headless matplotlib)."""
 
 from __future__ import annotations
 
@@ -11,29 +11,58 @@ import numpy as np
 from sim4endor.rl.config import TrainConfig
 from sim4endor.rl.table import row_label
 
-#: Where the CSV logger of a run writes scalar ``NAME``: ``RUN_DIR/logs/scalars/NAME.csv``.
-SCALARS_DIR = Path("logs") / "scalars"
+#: The loggers' folder in a run: TensorBoard event files, and the CSV logger's
+#: ``scalars/NAME.csv`` (one ``frames,value`` line per point).
+LOGS_DIR = Path("logs")
+SCALARS_DIR = LOGS_DIR / "scalars"
+
+Curve = tuple[np.ndarray, np.ndarray]
 
 
-def read_scalar(run_dir: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
+def read_scalars(run_dir: Path) -> dict[str, Curve]:
+    """Returns every logged scalar of a run as ``name -> (frames, values)``, whichever logger
+    (``logger.backend`` csv or tensorboard) wrote them."""
+    curves = _csv_scalars(Path(run_dir) / SCALARS_DIR)
+    logs = Path(run_dir) / LOGS_DIR
+    if any(logs.glob("events.out.tfevents.*")):
+        curves.update(_tensorboard_scalars(logs))
+    return curves
+
+
+def _csv_scalars(folder: Path) -> dict[str, Curve]:
+    curves = {}
+    for path in sorted(folder.rglob("*.csv")):
+        if path.stat().st_size:
+            data = np.loadtxt(path, delimiter=",", ndmin=2)
+            curves[path.relative_to(folder).with_suffix("").as_posix()] = (data[:, 0], data[:, 1])
+    return curves
+
+
+def _tensorboard_scalars(folder: Path) -> dict[str, Curve]:
+    # TensorBoard's own reader (in the tensorboard extra, which that logger needs anyway); a
+    # resumed run's several event files are read in order.
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    events = EventAccumulator(str(folder), size_guidance={"scalars": 0})
+    events.Reload()
+    curves = {}
+    for name in events.Tags()["scalars"]:
+        points = events.Scalars(name)
+        curves[name] = (np.array([p.step for p in points], dtype=np.float64),
+                        np.array([p.value for p in points], dtype=np.float64))
+    return curves
+
+
+def read_scalar(run_dir: Path, name: str) -> Curve:
     """Returns (frames, values) of logged scalar ``name`` (e.g. ``eval/success_rate``)."""
-    path = Path(run_dir) / SCALARS_DIR / f"{name}.csv"
-    if not path.is_file() or path.stat().st_size == 0:
-        return np.zeros(0), np.zeros(0)
-    data = np.loadtxt(path, delimiter=",", ndmin=2)
-    return data[:, 0], data[:, 1]
+    return read_scalars(run_dir).get(name, (np.zeros(0), np.zeros(0)))
 
 
 def scalar_names(run_dirs: Sequence[Path], prefix: str) -> list[str]:
     """Names of the scalars under ``prefix`` (e.g. ``train/reward_``) logged by any run."""
     names: set[str] = set()
     for run_dir in run_dirs:
-        base = Path(run_dir) / SCALARS_DIR
-        names.update(
-            p.relative_to(base).with_suffix("").as_posix()
-            for p in base.rglob("*.csv")
-            if p.relative_to(base).as_posix().startswith(prefix)
-        )
+        names.update(name for name in read_scalars(run_dir) if name.startswith(prefix))
     return sorted(names)
 
 

@@ -41,7 +41,9 @@ def run_config(run_dir: Path) -> TrainConfig:
 def load_agent(run_dir: Path, make_env: EnvFactory | None = None) -> tuple[TrainConfig, Agent]:
     """Rebuilds the agent of ``run_dir`` from its config and latest checkpoint."""
     config = run_config(run_dir)
-    env = (make_env or env_factory(config.env))(config.seed + EVAL_SEED_OFFSET)
+    env = (make_env or env_factory(config.env, evaluation=True))(
+        config.seed + EVAL_SEED_OFFSET
+    )
     try:
         return config, _restored_agent(run_dir, config, env)
     finally:
@@ -61,6 +63,7 @@ def evaluate_run(
     seed: int | None = None,
     max_steps: int | None = None,
     make_env: EnvFactory | None = None,
+    progress: bool = False,
 ) -> dict[str, Any]:
     """Evaluates the latest policy of ``run_dir`` and writes ``evaluation.json`` there.
 
@@ -70,7 +73,9 @@ def evaluate_run(
         seed: evaluation seed; defaults to the run's seed + ``EVAL_SEED_OFFSET`` (the seed
             of the periodic evaluations during training).
         max_steps: step cap per episode; defaults to the run's ``eval.max_steps``.
-        make_env: ``seed -> env`` factory; defaults to the run's sim4endor task.
+        make_env: ``seed -> env`` factory; defaults to the run's sim4endor task (its
+            evaluation split).
+        progress: show a progress bar over the episodes.
 
     Returns:
         The metrics of :func:`sim4endor.rl.metrics.summarize` plus ``frames`` and
@@ -78,7 +83,7 @@ def evaluate_run(
     """
     config = run_config(run_dir)
     seed = config.seed + EVAL_SEED_OFFSET if seed is None else seed
-    env = (make_env or env_factory(config.env))(seed)
+    env = (make_env or env_factory(config.env, evaluation=True))(seed)
     try:
         agent = _restored_agent(run_dir, config, env)
         episodes = rollout_episodes(
@@ -87,6 +92,7 @@ def evaluate_run(
             trials=trials,
             max_steps=max_steps or config.eval.max_steps,
             seed=seed,
+            progress=progress,
         )
     finally:
         env.close()

@@ -81,19 +81,24 @@ def train(
         config: the run's configuration.
         run_dir: output folder (created); an existing checkpoint there is resumed when its
             config matches ``config`` (``collector.total_frames`` may grow).
-        make_env: ``seed -> env`` factory; defaults to the sim4endor task of ``config.env``.
+        make_env: ``seed -> env`` factory of the training and evaluation environments;
+            defaults to the sim4endor task of ``config.env`` (evaluated on its evaluation
+            split, :attr:`~sim4endor.rl.config.EnvConfig.eval_pool_seed`).
         progress: show a tqdm progress bar.
 
     Returns:
         The final evaluation metrics (also written to ``run_dir/evaluation.json``).
     """
     run_dir = Path(run_dir)
+    make_eval_env = make_env or env_factory(config.env, evaluation=True)
     make_env = make_env or env_factory(config.env)
     _check_resumable(run_dir, config)
-    save_config(config, run_dir / CONFIG_FILE)
     torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)
-    eval_env = make_env(config.seed + EVAL_SEED_OFFSET)
+    # Built before anything is written: a task argument the domain refuses (or a missing
+    # vessel folder) must not leave a run folder behind.
+    eval_env = make_eval_env(config.seed + EVAL_SEED_OFFSET)
+    save_config(config, run_dir / CONFIG_FILE)
     agent = build_agent(config, eval_env.observation_spec, eval_env.action_spec)
     replay = _replay_buffer(config)
     state = checkpoint.Progress()
@@ -218,6 +223,8 @@ class _Loop:
         self.logger = logger
         self.eval_env = eval_env
         self.keys = EpisodeKeys()
+        # The latest deterministic evaluation's success, shown on the progress bar.
+        self.last_eval: str | None = None
         # Wall-clock time already added to Progress.wall_clock_s ends here.
         self.clock = time.monotonic()
 
@@ -306,7 +313,10 @@ class _Loop:
             success = success_fraction(finished, self.keys)
             if success is not None:
                 scalars["train/success_rate"] = success
-                stats["success"] = f"{success:.0%}"
+                # Exploring policy, this batch's finished episodes only: not the evaluation.
+                stats["batch_success"] = f"{success:.0%}"
+        if self.last_eval is not None:
+            stats["eval_success"] = self.last_eval
         if self.logger is not None:
             for name, value in scalars.items():
                 self.logger.log_scalar(name, value, step=state.frames)
@@ -335,6 +345,7 @@ class _Loop:
             keys=self.keys,
         )
         metrics = evaluation_record(state, episodes)
+        self.last_eval = f"{round(metrics['success_rate'] * len(episodes))}/{len(episodes)}"
         # A headless job's log gets a readable line per evaluation beside the progress bar.
         _LOG.info(
             "%s: evaluation at %d/%d frames: %s",

@@ -24,6 +24,19 @@ OPTIONAL_OBSERVATIONS: tuple[str, ...] = (
     "pixels",
 )
 
+#: Unit and size of each observation entry (``wire_shape`` is 3 per wire vertex).
+OBSERVATION_UNITS: dict[str, tuple[str, int | None]] = {
+    "tip_position": ("m", 3),
+    "tip_velocity": ("m/s", 3),
+    "target_position": ("m", 3),
+    "wire_shape": ("m", None),
+    "last_action": ("1 (normalised action)", 2),
+    "insertion": ("m", 1),
+    "rotation": ("rad", 1),
+    "manifold_distance": ("m", 1),
+    "pixels": ("grey level 0-255", None),
+}
+
 
 class TaskConfigError(Sim4EndoRError, ValueError):
     """Raised for an invalid task setting; the message names it and the valid choices."""

@@ -44,6 +44,16 @@ class Vessel:
     manifest: Manifest
     centerline: CenterlineGraph
 
+    def __repr__(self) -> str:
+        # The generated repr printed every centerline node and radius: hundreds of lines.
+        graph = self.centerline
+        return (
+            f"Vessel({self.name!r}, root={str(self.root)!r}, hulls={self.manifest.hull_count}, "
+            f"centerline={len(graph.nodes)} nodes / {graph.total_length() * 1e3:.1f} mm, "
+            f"radius {graph.radii.min() * 1e3:.2f}-{graph.radii.max() * 1e3:.2f} mm, "
+            f"targets={sorted(self.targets)})"
+        )
+
     @property
     def name(self) -> str:
         """The vessel's name."""

@@ -196,18 +196,26 @@ def _close_wall_holes(
     return prepared
 
 
-def _choose_inlet(graph: CenterlineGraph, inlet: np.ndarray | None) -> int:
+def _choose_inlet(graph: CenterlineGraph, inlet: np.ndarray | None) -> tuple[int, str]:
+    """The inlet's node and how it was chosen (recorded in the manifest, printed by the CLI)."""
     ends = graph.terminal_nodes()
     if len(ends) == 0:
         raise BuildError("The centerline graph has no vessel end for the inlet (it is a loop).")
     if inlet is not None:
-        return int(ends[np.argmin(np.linalg.norm(graph.nodes[ends] - inlet, axis=1))])
+        return int(ends[np.argmin(np.linalg.norm(graph.nodes[ends] - inlet, axis=1))]), "given"
     widths = []
     for end in ends:
         chain = next(c for c in branch_chains(graph) if end in (c[0], c[-1]))
         radii = graph.radii[chain]
         widths.append(float(np.mean(radii[: max(2, len(radii) // 3)])))
-    return int(ends[int(np.argmax(widths))])
+    order = np.argsort(widths)[::-1]
+    choice = "widest vessel end"
+    # Ends of about equal calibre make "widest" a coin toss: say so, so the user passes --inlet.
+    if len(ends) > 1 and widths[order[1]] > 0.9 * widths[order[0]]:
+        choice += (f", but another end is within 10 % ({widths[order[0]] * 1e3:.2f} vs "
+                   f"{widths[order[1]] * 1e3:.2f} mm radius): pass --inlet X,Y,Z if it is not "
+                   "the vessel's entry")
+    return int(ends[order[0]]), choice
 
 
 def _choose_targets(
@@ -396,7 +404,11 @@ def build_vessel(
         )
     prepared = _close_wall_holes(prepared, centerline, source or name,
                                  params.max_hole_perimeter)
-    inlet_node = _choose_inlet(centerline, None if inlet is None else np.asarray(inlet) * scale)
+    inlet_node, inlet_choice = _choose_inlet(
+        centerline, None if inlet is None else np.asarray(inlet) * scale
+    )
+    if inlet_choice.startswith("widest vessel end, but"):
+        logger.warning("%s: inlet chosen as the %s", name, inlet_choice)
     target_points = _choose_targets(
         centerline,
         inlet_node,
@@ -448,6 +460,8 @@ def build_vessel(
         **given_checks,
     }
     build_record = {**asdict(params), "repairs": asdict(prepared.report)}
+    if inlet_choice != "given":  # a given inlet needs no word (and keeps old folders equal)
+        build_record["inlet_choice"] = inlet_choice
     if registration is not None and registration_report is not None:
         build_record["centerline_registration"] = {
             "params": asdict(registration),

@@ -1,0 +1,141 @@
+"""Task arguments from the command line and YAML, evaluation splits, and the smaller CLI fixes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+from rl_testing import pendulum_env, tiny_config
+
+from sim4endor import vessels
+from sim4endor.cli import main
+from sim4endor.rl import envs as rl_envs
+from sim4endor.rl.config import ConfigError, EnvConfig, apply_overrides, default_config
+from sim4endor.rl.export import ExportError, export_policy
+from sim4endor.rl.plots import read_scalar, scalar_names
+from sim4endor.rl.trainer import train
+
+
+def test_env_config_gives_only_the_task_arguments_set() -> None:
+    config = apply_overrides(default_config("sac"), [
+        "env.domain=random_coronary", "env.task=navigate", "env.pool_seed=3",
+        "env.pool_size=4", "env.eval_pool_seed=1000", "env.wire=workhorse",
+    ]).env
+    assert config.task_kwargs(7) == {"random": 7, "reward": "manifold", "observations": (),
+                                     "wire": "workhorse", "pool_seed": 3, "pool_size": 4}
+    assert config.task_kwargs(7, evaluation=True)["pool_seed"] == 1000
+    assert EnvConfig().task_kwargs(0) == {"random": 0, "reward": "manifold", "observations": ()}
+
+
+@pytest.mark.parametrize(("override", "message"), [
+    ("env.pool_size=0", "env.pool_size must be > 0"),
+    ("env.pool_seed=-1", "env.pool_seed must be >= 0"),
+    ("env.eval_pool_seed=5", "env.eval_pool_seed needs env.pool_size"),
+    ("env.target=[1]", "cannot read"),
+])
+def test_bad_task_arguments_name_the_field(override: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        apply_overrides(default_config("sac"), [override])
+
+
+def test_training_evaluates_on_the_evaluation_split(monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: list[dict[str, Any]] = []
+
+    def fake(domain: str, task: str, task_kwargs: dict[str, Any]) -> Any:
+        seen.append(task_kwargs)
+        return pendulum_env(task_kwargs["random"])
+
+    monkeypatch.setattr("sim4endor.envs.make_torchrl_env", fake)
+    config = EnvConfig(domain="random_coronary", task="navigate", pool_seed=0, pool_size=8,
+                       eval_pool_seed=100)
+    rl_envs.env_factory(config)(1)
+    rl_envs.env_factory(config, evaluation=True)(2)
+    assert [(s["random"], s["pool_seed"]) for s in seen] == [(1, 0), (2, 100)]
+
+
+def _cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    status = main(argv)
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def test_train_flags_reach_the_config_and_a_refused_argument_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    status, _, err = _cli(["train", "sac", "--vessel", "simplified_phantom", "--target", "A",
+                           "--frames", "10", "--out", str(out), "--no-progress"], capsys)
+    # The default domain (simplified_phantom) takes no vessel: refused by name, before any file.
+    assert status == 2 and "Unknown task_kwargs ['target', 'vessel']" in err
+    assert not out.exists()
+
+
+def test_render_needs_a_task_unless_the_policy_is_a_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    status, _, err = _cli(["render", "--policy", "insert", "--out", str(tmp_path / "a.mp4")],
+                          capsys)
+    assert status == 2 and "Name a DOMAIN and TASK" in err
+    status, _, err = _cli(["render", "vessel", "--out", str(tmp_path / "a.mp4")], capsys)
+    assert status == 2 and "Name both DOMAIN and TASK" in err
+
+
+def test_reports_read_tensorboard_logs(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    train(tiny_config("sac", "logger.backend=tensorboard"), run_dir, make_env=pendulum_env,
+          progress=False)
+    assert not (run_dir / "logs" / "scalars").exists()
+    frames, values = read_scalar(run_dir, "eval/success_rate")
+    assert frames.tolist() == [100.0, 200.0] and values.shape == (2,)
+    assert scalar_names([run_dir], "train/reward") == ["train/reward"]
+
+
+def test_export_command_and_reexport_of_an_exported_policy(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run_dir = tmp_path / "run"
+    train(tiny_config("sac"), run_dir, make_env=pendulum_env, progress=False)
+    first = export_policy(run_dir, tmp_path / "first", make_env=pendulum_env)
+    # The CLI takes the exported folder (or its policy.pt) and adds ONNX to a copy.
+    status, out, _ = _cli(["export", str(first[0]), "--out", str(tmp_path / "again"),
+                           "--onnx"], capsys)
+    assert status == 0 and [Path(p).name for p in out.split()] == [
+        "policy.pt", "policy.json", "policy.onnx"]
+    contract = json.loads((tmp_path / "again" / "policy.json").read_text())
+    # Pendulum's 3 inputs are no sim4endor observation: no invented entries.
+    assert contract["observation"]["entries"] is None
+    assert contract["observation"]["shape"][-1] == 3
+    with pytest.raises(ExportError, match="neither a training run folder"):
+        export_policy(tmp_path, tmp_path / "x")
+
+
+def test_a_vessel_prints_in_one_line() -> None:
+    text = repr(vessels.load("simplified_phantom"))
+    assert "\n" not in text and len(text) < 300
+    assert "hulls=481" in text and "targets=['A', 'B']" in text
+
+
+def test_an_automatic_inlet_among_equal_ends_is_reported(tmp_path: Path) -> None:
+    import numpy as np
+    import trimesh
+
+    from sim4endor.vessels.build import BuildParams, build_vessel
+    from sim4endor.vessels.walls import WallParams
+
+    fork = np.array([30.0, 0.0, 0.0])
+    parts = [trimesh.creation.cylinder(radius=1.7, segment=[np.zeros(3), fork], sections=64),
+             trimesh.creation.icosphere(subdivisions=4, radius=1.7).apply_translation(fork)]
+    for side in (1, -1):
+        end = fork + 25.0 * np.array([np.cos(0.6), side * np.sin(0.6), 0.0])
+        parts.append(trimesh.creation.cylinder(radius=1.7, segment=[fork, end], sections=64))
+    lumen = trimesh.boolean.union(parts, engine="manifold")
+    params = BuildParams(wall=WallParams(use_coacd=False, workers=1))
+    vessel = build_vessel(lumen, name="eq", out_dir=tmp_path / "eq", units="mm", params=params,
+                          progress=False, cache=False)
+    assert "another end is within 10 %" in vessel.manifest.build["inlet_choice"]
+    given = build_vessel(lumen, name="eq", out_dir=tmp_path / "given", units="mm",
+                         params=params, progress=False, cache=False, inlet=np.zeros(3))
+    assert "inlet_choice" not in given.manifest.build
+    assert np.linalg.norm(given.inlet_position) < 1e-3
