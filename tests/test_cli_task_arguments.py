@@ -139,3 +139,16 @@ def test_an_automatic_inlet_among_equal_ends_is_reported(tmp_path: Path) -> None
                          params=params, progress=False, cache=False, inlet=np.zeros(3))
     assert "inlet_choice" not in given.manifest.build
     assert np.linalg.norm(given.inlet_position) < 1e-3
+
+
+def test_evaluate_on_another_task_prints_but_keeps_the_runs_evaluation(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run_dir = tmp_path / "run"
+    train(tiny_config("sac", "eval.max_steps=5", "eval.trials=1"), run_dir, progress=False)
+    saved = (run_dir / "evaluation.json").read_text()
+    status, out, err = _cli(["evaluate", str(run_dir), "--trials", "1", "--json", "--no-progress",
+                             "--domain", "vascular_phantom", "--task", "task_b"], capsys)
+    assert status == 0, err
+    assert json.loads(out)["trials"] == 1
+    assert (run_dir / "evaluation.json").read_text() == saved

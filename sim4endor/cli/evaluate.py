@@ -17,13 +17,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=(
             "Run the latest policy of RUN_DIR for --trials episodes and print success_rate, "
             "mean_completion_time_s (simulated procedure time of successful episodes), "
-            "mean_path_length_m, spl and max_wall_force_n. Also writes RUN_DIR/evaluation.json."
+            "mean_path_length_m, spl and max_wall_force_n, on the run's task (its evaluation "
+            "split), and write RUN_DIR/evaluation.json; with task arguments (another vessel, "
+            "wire or tree pool) only print them."
         ),
     )
     parser.add_argument("run_dir", type=Path, help="folder written by `sim4endor train --out`")
     parser.add_argument("--trials", type=arg_types.positive_int, default=10,
                         help="episodes (default: 10)")
     parser.add_argument("--seed", type=arg_types.seed, help="evaluation seed (default: the run's)")
+    parser.add_argument("--domain", help="evaluate on another domain (default: the run's)")
+    parser.add_argument("--task", help="task of --domain")
+    arg_types.add_task_arguments(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON line")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.set_defaults(func=run)
@@ -36,8 +41,11 @@ def run(args: argparse.Namespace) -> int:
     from sim4endor.rl.runs import evaluate_run
 
     torch.set_num_threads(1)  # small networks: one thread is fastest and leaves cores free
+    other_task = arg_types.task_arguments(args)
+    if args.domain or args.task:
+        other_task.update({k: v for k, v in (("domain", args.domain), ("task", args.task)) if v})
     metrics = evaluate_run(args.run_dir, trials=args.trials, seed=args.seed,
-                           progress=not args.no_progress)
+                           task_arguments=other_task, progress=not args.no_progress)
     if args.json:
         print(json.dumps(metrics))  # noqa: T201
     else:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -63,9 +65,13 @@ def evaluate_run(
     seed: int | None = None,
     max_steps: int | None = None,
     make_env: EnvFactory | None = None,
+    task_arguments: Mapping[str, Any] | None = None,
     progress: bool = False,
 ) -> dict[str, Any]:
     """Evaluates the latest policy of ``run_dir`` and writes ``evaluation.json`` there.
+
+    With ``task_arguments`` (e.g. another vessel, wire or tree pool: a generalisation test)
+    the metrics are only returned: ``evaluation.json`` stays the run's own task's.
 
     Args:
         run_dir: a folder written by :func:`sim4endor.rl.trainer.train`.
@@ -75,6 +81,8 @@ def evaluate_run(
         max_steps: step cap per episode; defaults to the run's ``eval.max_steps``.
         make_env: ``seed -> env`` factory; defaults to the run's sim4endor task (its
             evaluation split).
+        task_arguments: :class:`~sim4endor.rl.config.EnvConfig` fields replacing the run's
+            (``domain``, ``task``, ``vessel``, ``target``, ``wire``, ``pool_seed``, ...).
         progress: show a progress bar over the episodes.
 
     Returns:
@@ -83,7 +91,8 @@ def evaluate_run(
     """
     config = run_config(run_dir)
     seed = config.seed + EVAL_SEED_OFFSET if seed is None else seed
-    env = (make_env or env_factory(config.env, evaluation=True))(seed)
+    env_config = dataclasses.replace(config.env, **(task_arguments or {}))
+    env = (make_env or env_factory(env_config, evaluation=True))(seed)
     try:
         agent = _restored_agent(run_dir, config, env)
         episodes = rollout_episodes(
@@ -98,7 +107,8 @@ def evaluate_run(
         env.close()
     # The trainer's own record, so a re-evaluation keeps the run's training time in the tables.
     metrics = evaluation_record(checkpoint.load_progress(run_dir), episodes)
-    write_final_evaluation(run_dir, metrics)
+    if not task_arguments:
+        write_final_evaluation(run_dir, metrics)
     return metrics
 
 
