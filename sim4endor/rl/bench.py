@@ -298,8 +298,14 @@ def _run_ray(
             "--backend ray needs Ray: pip install 'sim4endor[ray]' (or use the local backend)."
         ) from exc
     ray.init(ignore_reinit_error=True)
-    remote = ray.remote(num_cpus=1)(_train_one)
-    pending = {remote.remote(config, run_dir, make_env, False): run_dir for config, run_dir in todo}
+    remote = ray.remote(_train_one)
+    # A run steps env.num_envs environment processes (one in-process): it reserves that many
+    # CPUs, so the scheduler never packs more simulations on a node than it has cores.
+    pending = {
+        remote.options(num_cpus=config.env.num_envs).remote(config, run_dir, make_env, False):
+            run_dir
+        for config, run_dir in todo
+    }
     while pending:
         ready, _ = ray.wait(list(pending), num_returns=1)
         tracker.finished(pending.pop(ready[0]), ray.get(ready[0]))
