@@ -292,8 +292,9 @@ def _profile_factors(
 
     A joint stands for the rod around its vertex (its Voronoi cell); rod pieces in series add
     compliances, so the joint's stiffness is ``1 / ∫ ds / EI(s)`` over that cell (the
-    harmonic mean of E·I), not E·I at the vertex: with a taper inside a 5 mm shaft segment
-    the two differ by up to the taper's stiffness ratio.
+    harmonic mean of E·I). Measured on the presets' 60 mm cantilevers, this and E·I sampled
+    at the vertex both stay within 0.3 % of beam theory; the cell mean is kept because it
+    does not depend on where a kink of the profile falls inside a (5 mm) shaft segment.
     """
     count = len(lengths)
     factors = np.ones(count)
