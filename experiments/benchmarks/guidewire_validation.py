@@ -32,9 +32,8 @@ Definitions:
   (clamped-free buckling load of the continuous E·I(s)) figures in gram-force.
 * tapered_cantilever_rel_error: each tapered preset, 30 mm long (mostly its taper),
   straightened, clamped and loaded sideways at its tip; static deflection vs the integrated
-  Euler–Bernoulli
-  solution F ∫ (L − x)² / EI(x) dx; the largest error over the presets, with real mass
-  and with the default mass scaling (extra damping, 60 s to settle).
+  Euler–Bernoulli solution F ∫ (L − x)² / EI(x) dx; the largest error over the presets,
+  with real mass and with the default mass scaling (extra damping, 60 s to settle).
 * realtime_factor: simulated seconds per second of stepping + policy over all steering
   episodes, timed with this thread's CPU time: on the shared development machine that is the
   wall time one dedicated core would need (the wall-clock figure and the load average are
