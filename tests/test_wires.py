@@ -127,6 +127,10 @@ def test_unknown_presets_and_bad_profiles_name_the_input() -> None:
         wires.preset("floppy")
     with pytest.raises(wires.WireCatalogueError, match=r"Unknown wire fields \['colour'\]"):
         wires.resolve({"preset": "stiff", "colour": "blue"})
+    with pytest.raises(wires.WireCatalogueError, match=r"'length' \(m\) and 'angle'"):
+        wires.resolve({"preset": "stiff", "tip": {"length": 0.002}})
+    bent = wires.resolve({"preset": "stiff", "tip": {"length": 0.002, "angle": 1.0}})
+    assert (bent.tip_length, bent.tip_angle) == (0.002, 1.0)
     with pytest.raises(GuidewireConfigError, match="core_profile distances"):
         GuidewireConfig(core_profile=((0.001, 1e-4), (0.01, 2e-4)))
     with pytest.raises(GuidewireConfigError, match="core_profile diameters"):

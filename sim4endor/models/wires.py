@@ -4,6 +4,7 @@ The presets are data (``wires.toml`` beside this module, read on first use, neve
 import); this module turns them into :class:`~sim4endor.models.guidewire.GuidewireConfig`.
 
 Example:
+    >>> import math
     >>> from sim4endor.models import wires
     >>> wires.names()
     ('paper', 'workhorse', 'intermediate', 'stiff')
@@ -212,7 +213,12 @@ def resolve(wire: str | GuidewireConfig | Mapping[str, Any] | None) -> Guidewire
                 f"Unknown wire fields {unknown}; valid: 'preset', 'tip' and {sorted(valid)}."
             )
         if isinstance(tip, Mapping):
-            tip = TipShape(**tip)
+            if set(tip) != {"length", "angle"}:
+                raise WireCatalogueError(
+                    f"A wire's tip mapping needs exactly 'length' (m) and 'angle' (rad), got "
+                    f"{sorted(tip)}."
+                )
+            tip = TipShape(float(tip["length"]), float(tip["angle"]))
         wire_config = dataclasses.replace(base, **fields)
         return wire_config if tip is None else shaped(wire_config, tip)
     raise WireCatalogueError(
