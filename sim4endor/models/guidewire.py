@@ -22,8 +22,8 @@ How the rod is built (and why):
   so that the joint represents the rod length around its vertex (the usual discrete-rod
   Voronoi length). This makes non-uniform segments and a softer tip exact, and brings the
   cantilever error from O(1/N) to O(1/N²). A tapered core (``core_profile``, the catalogue's
-  real wires) enters the same factor as ``(d(s)/d_ref)^4``, averaged over the joint's cell. The second geom is the contact capsule with the
-  wire's outer radius.
+  real wires) enters the same factor as ``(d(s)/d_ref)^4``, averaged over the joint's cell.
+  The second geom is the contact capsule with the wire's outer radius.
 * The first body is welded to the parent (the driver's clamp); ``flat="false"`` makes the
   built (pre-bent) shape the rest shape.
 * Quasi-static mass scaling: the wire's inertia is negligible next to its elastic and contact
