@@ -30,6 +30,11 @@ entry                  shape      unit    meaning
 
 Opt in with ``task_kwargs={"observations": ("target_position", ...)}``.
 
+**Wire**: ``task_kwargs={"wire": "workhorse"}`` picks a catalogue preset
+(:mod:`sim4endor.models.wires`: ``paper`` (default), ``workhorse``, ``intermediate``,
+``stiff``); a :class:`~sim4endor.models.guidewire.GuidewireConfig` or a mapping
+(``{"preset": "workhorse", "tip": "J"}``) also works.
+
 **Action**: shape (2,), bounded [-1, 1]: ``[Δd / max_insertion_step, Δθ / max_rotation_step]``
 per control step; defaults 1.5 mm and 9° at 20 Hz (``control_timestep`` 0.05 s), i.e. at most
 30 mm/s and 180 °/s (:class:`sim4endor.tasks.ActionConfig`). Values outside [-1, 1] are
@@ -60,6 +65,9 @@ from dm_control.mujoco.wrapper import MjModel
 from dm_control.rl import control
 
 from sim4endor import registry
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.models import wires
+from sim4endor.models.scene import SceneConfig
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.rewards import RewardConfig
 from sim4endor.tasks import (
@@ -87,7 +95,7 @@ _Config = TypeVar("_Config")
 #: task_kwargs understood by every task (besides the domain-specific ones below).
 _COMMON_KWARGS = (
     "random", "reward", "curvature_weight", "observations", "action", "termination",
-    "initial_state", "pixels",
+    "initial_state", "pixels", "wire",
 )
 _DOMAIN_KWARGS: Mapping[str, tuple[str, ...]] = {
     "vessel": ("vessel", "target"),
@@ -225,22 +233,32 @@ def _environment_kwargs(given: Mapping[str, Any]) -> dict[str, Any]:
     return dict(given)
 
 
+def _scene(kwargs: Mapping[str, Any]) -> SceneConfig:
+    """The scene of task_kwargs ``wire``: a preset name, a GuidewireConfig or a mapping."""
+    try:
+        return SceneConfig(wire=wires.resolve(kwargs.get("wire")))
+    except Sim4EndoRError as exc:
+        raise TaskConfigError(f"task_kwargs wire: {exc}") from None
+
+
 def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> AnatomySource:
+    scene = _scene(kwargs)
     if entry.domain == "random_coronary":
         return random_coronary.pool(
             size=_integer(kwargs, "pool_size", random_coronary.DEFAULT_POOL_SIZE, minimum=1),
             seed=_integer(kwargs, "pool_seed", 0, minimum=0),
             cache_dir=None if kwargs.get("cache_dir") is None else Path(kwargs["cache_dir"]),
+            scene=scene,
         )
     if entry.vessel is not None and entry.target is not None:
-        return FixedAnatomy(compile_anatomy(entry.vessel), entry.target)
+        return FixedAnatomy(compile_anatomy(entry.vessel, scene), entry.target)
     missing = [k for k in ("vessel", "target") if k not in kwargs]
     if missing:
         raise TaskConfigError(
             f"Domain {entry.domain!r} needs task_kwargs {missing}, e.g. "
             "{'vessel': 'simplified_phantom', 'target': 'A'} or a vessel folder path."
         )
-    return FixedAnatomy(compile_anatomy(kwargs["vessel"]), str(kwargs["target"]))
+    return FixedAnatomy(compile_anatomy(kwargs["vessel"], scene), str(kwargs["target"]))
 
 
 def load(
@@ -254,7 +272,10 @@ def load(
     Args:
         domain_name: A registered domain, e.g. ``"simplified_phantom"``.
         task_name: A task of that domain, e.g. ``"task_a"``.
-        task_kwargs: ``random`` (seed), ``reward`` (``"manifold"``/``"euclidean"`` or a
+        task_kwargs: ``wire`` (a preset of :func:`sim4endor.models.wires.names`, e.g.
+            ``"workhorse"``, a :class:`~sim4endor.models.guidewire.GuidewireConfig` or a
+            mapping of its fields with optional ``preset`` and ``tip``; default ``"paper"``),
+            ``random`` (seed), ``reward`` (``"manifold"``/``"euclidean"`` or a
             :class:`~sim4endor.rewards.RewardConfig`), ``curvature_weight``, ``observations``
             (extra entries), ``action`` / ``termination`` / ``initial_state`` / ``pixels``
             (config dataclasses);

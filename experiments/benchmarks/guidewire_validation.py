@@ -5,8 +5,9 @@
 
 Prints a human-readable report, or with ``--json`` one JSON line with exactly the keys
 cantilever_rel_error, torque_error_deg, steer_success_a, steer_success_b,
-max_escape_over_radius, realtime_factor; the cost-vs-segment-count table is printed (to
-stderr with ``--json``). Run it on one core for the speed figures, e.g.
+max_escape_over_radius, realtime_factor, tip_load_rel_error, tip_load_gf,
+tapered_cantilever_rel_error; the cost-vs-segment-count table is printed (to stderr with
+``--json``). Run it on one core for the speed figures, e.g.
 ``OMP_NUM_THREADS=1 taskset -c 0 python ...``; the load average is printed with them.
 
 Definitions:
@@ -23,6 +24,16 @@ Definitions:
   while rotating back and forth (so the wire slides along the wall); largest distance of any
   wire point outside the lumen (distance to the centerline graph minus the local radius) in
   wire radii; NaN or MuJoCo warnings make it infinite.
+* tip_load_rel_error: per rated catalogue preset (sim4endor.models.wires), the simulated
+  manufacturer tip-load test (sim4endor.models.tip_load: straight wire held 10 mm from its
+  tip, pushed perpendicular against a frictionless plate; force once the buckled column
+  has shortened by 5 %) against the rated tip load: |simulated - rated| / rated.
+  tip_load_gf gives, per preset (paper included), the simulated, rated and beam-theory
+  (clamped-free buckling load of the continuous E·I(s)) figures in gram-force.
+* tapered_cantilever_rel_error: each tapered preset, 30 mm long (mostly its taper),
+  straightened, clamped and loaded sideways at its tip; static deflection vs the integrated
+  Euler–Bernoulli solution F ∫ (L − x)² / EI(x) dx; the largest error over the presets,
+  with real mass and with the default mass scaling (extra damping, 60 s to settle).
 * realtime_factor: simulated seconds per second of stepping + policy over all steering
   episodes, timed with this thread's CPU time: on the shared development machine that is the
   wall time one dedicated core would need (the wall-clock figure and the load average are
@@ -43,7 +54,7 @@ import numpy as np
 from dm_control.rl import control
 
 from sim4endor import vessels
-from sim4endor.models import validation
+from sim4endor.models import tip_load, validation, wires
 from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.models.scene import SceneConfig, config_for_vessel
 from sim4endor.physics import GuidewirePhysics
@@ -61,6 +72,39 @@ def cantilever_errors(wire: GuidewireConfig) -> dict[str, float]:
     return {"real_mass": real.relative_error, "mass_scaled": scaled.relative_error,
             "predicted_mm": real.predicted * 1e3, "real_mm": real.deflection * 1e3,
             "scaled_mm": scaled.deflection * 1e3}
+
+
+def tip_loads() -> dict[str, dict[str, float | None]]:
+    """The simulated tip-load test of every catalogue preset, with its rating (gf)."""
+    out: dict[str, dict[str, float | None]] = {}
+    for name in wires.names():
+        entry = wires.entry(name)
+        result = tip_load.simulate_tip_load(entry.config)
+        rated = entry.rated_tip_load_gf
+        out[name] = {
+            "simulated": result.force_gf,
+            "rated": rated,
+            "beam_theory": tip_load.gram_force(tip_load.buckling_load(entry.config)),
+            "rel_error": None if rated is None else abs(result.force_gf - rated) / rated,
+        }
+    return out
+
+
+def tapered_cantilever_errors(length: float = 0.03) -> dict[str, dict[str, float]]:
+    """Tapered presets as cantilevers: real mass and default mass scaling (heavily damped)."""
+    out = {}
+    for name in wires.names():
+        wire = dataclasses.replace(wires.preset(name), length=length)
+        if wire.core_profile is None:
+            continue
+        real = validation.tapered_cantilever(dataclasses.replace(wire, mass_scale=1.0))
+        scaled = validation.tapered_cantilever(
+            dataclasses.replace(wire, damping_time=2.0), settle_time=60.0
+        )
+        out[name] = {"real_mass": real.relative_error, "mass_scaled": scaled.relative_error,
+                     "predicted_mm": real.predicted * 1e3, "real_mm": real.deflection * 1e3,
+                     "scaled_mm": scaled.deflection * 1e3}
+    return out
 
 
 def torque_error(vessel: vessels.Vessel, config: SceneConfig) -> float:
@@ -190,6 +234,8 @@ def main() -> None:
     escape_radii, escape_surface, escape_force = escape(vessel, config)
     table = segment_table(vessel, config)
     unhealthy, episodes = robustness()
+    loads = tip_loads()
+    tapered = tapered_cantilever_errors()
     result = {
         "cantilever_rel_error": max(cantilever["real_mass"], cantilever["mass_scaled"]),
         "torque_error_deg": torque,
@@ -197,6 +243,16 @@ def main() -> None:
         "steer_success_b": steer["B"],
         "max_escape_over_radius": float(escape_radii),
         "realtime_factor": steer["sim_time"] / steer["cpu_time"],
+        "tip_load_rel_error": {
+            name: row["rel_error"] for name, row in loads.items() if row["rel_error"] is not None
+        },
+        "tip_load_gf": {
+            name: {k: row[k] for k in ("simulated", "rated", "beam_theory")}
+            for name, row in loads.items()
+        },
+        "tapered_cantilever_rel_error": max(
+            max(row["real_mass"], row["mass_scaled"]) for row in tapered.values()
+        ),
     }
     print(f"vessel {vessel.name}, wire {config.wire.num_segments} segments, dt "
           f"{GuidewirePhysics.from_vessel(vessel, config).model.opt.timestep * 1e3:g} ms, "
@@ -221,6 +277,13 @@ def main() -> None:
         print(f"{row['segments']:8d} | {row['max_segment_mm']:16.1f} | "
               f"{row['steps_per_s']:13.0f} | {row['realtime_factor']:21.1f} | {row['reached_A']}",
               file=log)
+    for name, row in loads.items():
+        rated = "-" if row["rated"] is None else f"{row['rated']:.2f}"
+        error = "-" if row["rel_error"] is None else f"{row['rel_error']:.3f}"
+        print(f"tip load {name}: simulated {row['simulated']:.3f} gf, rated {rated} gf, beam "
+              f"theory {row['beam_theory']:.3f} gf, relative error {error}", file=log)
+    for name, row in tapered.items():
+        print(f"tapered cantilever {name}: {row}", file=log)
     print(f"total {time.perf_counter() - started:.0f} s", file=log)
     print(json.dumps(result) if args.json else result)
 

@@ -2,6 +2,8 @@
 
 * :func:`cantilever` — static tip deflection of a clamped straight wire under a small tip
   load, against Euler–Bernoulli ``δ = F L³ / (3 E I)``.
+* :func:`tapered_cantilever` — the same for a wire whose E·I varies along it (a tapered
+  core), against the integrated Euler–Bernoulli deflection ``δ = F ∫ (L − x)² / EI(x) dx``.
 * :func:`tip_bend_direction` — the direction the pre-bent tip points to, about the shaft axis
   (for torque transmission: rotate the base, compare the tip's rotation).
 * :func:`escape_depth` — how far any wire point is outside the lumen (distance from the
@@ -65,6 +67,51 @@ def cantilever(
     """
     factor = wire.tip_stiffness_factor if soft_tip else 1.0
     straight = dataclasses.replace(wire, tip_angle=0.0, tip_stiffness_factor=factor)
+    free_length = straight.length - float(segment_lengths(straight)[0])
+    ei = straight.bending_stiffness
+    force = 3 * ei * deflection_fraction / free_length**2
+    deflection = _loaded_tip_deflection(straight, force, timestep, settle_time)
+    tip = straight.tip_length
+    compliance = (free_length**3 - tip**3 + tip**3 / factor) / (3 * ei)
+    return CantileverResult(deflection, force * compliance, free_length, force)
+
+
+def euler_bernoulli_deflection(wire: GuidewireConfig, free_length: float, force: float) -> float:
+    """Small-deflection tip deflection (m) of the wire's distal ``free_length``, clamped, under
+    a lateral tip ``force`` (N): ``F ∫₀ᴸ (L − x)² / EI(x) dx`` (unit-load method; x from the
+    clamp), integrated with scipy's adaptive quadrature at the profile's kinks."""
+    from scipy.integrate import quad
+
+    kinks = [free_length - s for s, _ in wire.core_profile or () if 0 < s < free_length]
+    kinks.append(free_length - wire.tip_length)
+    value, _ = quad(
+        lambda x: (free_length - x) ** 2 / float(wire.flexural_rigidity(free_length - x)),
+        0.0, free_length, points=sorted(k for k in kinks if 0 < k < free_length), limit=200,
+    )
+    return force * value
+
+
+def tapered_cantilever(
+    wire: GuidewireConfig, timestep: float = 0.005, settle_time: float = 3.0,
+    deflection_fraction: float = 0.01,
+) -> CantileverResult:
+    """Clamps the straightened wire with its E·I(s) (core profile, tip factor) and loads its
+    tip sideways; the prediction is :func:`euler_bernoulli_deflection`.
+
+    As :func:`cantilever`: contacts off, the free length runs from the end of the first
+    (clamped) segment, and the load gives a deflection of ``deflection_fraction`` of it.
+    """
+    straight = dataclasses.replace(wire, tip_angle=0.0)
+    free_length = straight.length - float(segment_lengths(straight)[0])
+    unit = euler_bernoulli_deflection(straight, free_length, 1.0)
+    force = deflection_fraction * free_length / unit
+    deflection = _loaded_tip_deflection(straight, force, timestep, settle_time)
+    return CantileverResult(deflection, force * unit, free_length, force)
+
+
+def _loaded_tip_deflection(
+    straight: GuidewireConfig, force: float, timestep: float, settle_time: float
+) -> float:
     protrusion = max(DriverConfig().initial_protrusion, straight.tip_length + 0.003)
     driver = DriverConfig(
         initial_protrusion=protrusion, max_insertion=straight.length - protrusion - 0.003
@@ -72,26 +119,19 @@ def cantilever(
     physics = GuidewirePhysics.from_vessel(
         None, SceneConfig(wire=straight, driver=driver, timestep=timestep)
     )
-    free_length = straight.length - float(segment_lengths(straight)[0])
-    ei = straight.bending_stiffness
-    force = 3 * ei * deflection_fraction / free_length**2
     model, data = physics.model.ptr, physics.data.ptr
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT  # free of the sheath
     start = physics.tip_position()
     tip_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE)
     tip_body = int(model.site_bodyid[tip_site])
-    steps = round(settle_time / model.opt.timestep)
-    for _ in range(steps):
+    for _ in range(round(settle_time / model.opt.timestep)):
         data.qfrc_applied[:] = 0.0
         mujoco.mj_applyFT(
             model, data, np.array([0.0, 0.0, force]), np.zeros(3), physics.tip_position(),
             tip_body, data.qfrc_applied,
         )
         physics.step()
-    deflection = float(physics.tip_position()[2] - start[2])
-    tip = straight.tip_length
-    compliance = (free_length**3 - tip**3 + tip**3 / factor) / (3 * ei)
-    return CantileverResult(deflection, force * compliance, free_length, force)
+    return float(physics.tip_position()[2] - start[2])
 
 
 def drive_to(

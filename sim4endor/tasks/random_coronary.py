@@ -20,6 +20,7 @@ import functools
 import os
 from pathlib import Path
 
+from sim4endor.models.scene import SceneConfig
 from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, compile_anatomy
 from sim4endor.vessels.manifest import MANIFEST_FILE
 
@@ -39,13 +40,14 @@ def default_cache_dir() -> Path:
     return Path(base) / "sim4endor" / "random_coronary"
 
 
-def build_member(seed: int, cache_dir: Path) -> Anatomy:
+def build_member(seed: int, cache_dir: Path, scene: SceneConfig | None = None) -> Anatomy:
     """Generates the pool tree of ``seed``, builds it once (cached on disk) and compiles it.
 
     Generating costs under a second; the folder name carries a hash of the generated lumen
     and the build settings, so a changed generator or package version builds a new folder
     instead of silently reusing a stale one, and processes sharing the cache never rewrite a
-    folder another one is reading.
+    folder another one is reading. The wire is not part of the folder: only the compiled
+    scene (``scene``, default :class:`SceneConfig`) depends on it.
     """
     from sim4endor.vessels.build import BuildParams, build_vessel, content_hash
     from sim4endor.vessels.generators import CoronaryTreeConfig, coronary_tree
@@ -69,12 +71,18 @@ def build_member(seed: int, cache_dir: Path) -> Anatomy:
             params=params,
             progress=False,
         )
-    return compile_anatomy(folder, fit=False)
+    return compile_anatomy(folder, scene, fit=False)
 
 
-def pool(size: int, seed: int, cache_dir: Path | None = None) -> AnatomyPool:
-    """Returns the lazily built pool of ``size`` trees with seeds ``seed ... seed + size - 1``."""
+def pool(
+    size: int, seed: int, cache_dir: Path | None = None, scene: SceneConfig | None = None
+) -> AnatomyPool:
+    """Returns the lazily built pool of ``size`` trees with seeds ``seed ... seed + size - 1``.
+
+    ``scene`` (wire, driver, timestep; default :class:`SceneConfig`) is compiled into every
+    member; the cached tree folders do not depend on it.
+    """
     folder = cache_dir or default_cache_dir()
     return AnatomyPool(
-        [functools.partial(build_member, seed + k, folder) for k in range(size)]
+        [functools.partial(build_member, seed + k, folder, scene) for k in range(size)]
     )

@@ -1,0 +1,227 @@
+"""The wire catalogue: named 0.014" guidewire presets and the cardiologist's tip shaping.
+
+The presets are data (``wires.toml`` beside this module, read on first use, never at
+import); this module turns them into :class:`~sim4endor.models.guidewire.GuidewireConfig`.
+
+Example:
+    >>> import math
+    >>> from sim4endor.models import wires
+    >>> wires.names()
+    ('paper', 'workhorse', 'intermediate', 'stiff')
+    >>> wire = wires.preset("workhorse", tip=wires.TipShape(0.0015, math.radians(60)))
+    ... # doctest: +SKIP
+
+``paper`` is ``GuidewireConfig()`` unchanged, the default of every task, so the paper's
+results stay reproducible. The others model real wire classes (workhorse ≈ 1 gf,
+intermediate 3 gf, stiff CTO 12.4 gf tip load) with a tapered core whose distal diameter is
+derived from the rated tip load (see ``wires.toml`` and docs/guidewire.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from importlib import resources
+from typing import Any
+
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.models.guidewire import INCH, GuidewireConfig
+
+#: The preset that reproduces the paper (``GuidewireConfig()``).
+PAPER = "paper"
+#: Shape lengths a cardiologist bends into a coronary tip (m).
+SHAPE_LENGTH_RANGE = (0.001, 0.003)
+#: Shape angles of an angled tip (rad).
+SHAPE_ANGLE_RANGE = (math.radians(30.0), math.radians(90.0))
+#: The "J": a 3 mm arc curled through 150°, the tip pointing back at the shaft's side.
+J_LENGTH = 0.003
+J_ANGLE = math.radians(150.0)
+_MM = 1e-3
+
+
+class WireCatalogueError(Sim4EndoRError, ValueError):
+    """An unknown preset or a bad tip shape; the message names it and the valid choices."""
+
+
+@dataclass(frozen=True)
+class TipShape:
+    """The shape a cardiologist bends into the wire's tip: a circular arc.
+
+    Attributes:
+        length: Shaped length of the tip (m), 1–3 mm.
+        angle: Total bend over that length (rad), 30–90°.
+    """
+
+    length: float
+    angle: float
+
+    def __post_init__(self) -> None:
+        low, high = SHAPE_LENGTH_RANGE
+        if not (math.isfinite(self.length) and low <= self.length <= high):
+            raise WireCatalogueError(
+                f"TipShape.length must be {low * 1e3:g}–{high * 1e3:g} mm (in m: {low}–{high}), "
+                f"got {self.length!r} m."
+            )
+        low, high = SHAPE_ANGLE_RANGE
+        if not (math.isfinite(self.angle) and low - 1e-12 <= self.angle <= high + 1e-12):
+            raise WireCatalogueError(
+                f"TipShape.angle must be {math.degrees(low):g}–{math.degrees(high):g}° (in rad: "
+                f"{low:.4f}–{high:.4f}), got {self.angle!r} rad; for a J use tip='J'."
+            )
+
+    @classmethod
+    def degrees(cls, length_mm: float, angle_deg: float) -> TipShape:
+        """The shape from the units a cardiologist uses (mm and degrees)."""
+        return cls(length_mm * _MM, math.radians(angle_deg))
+
+
+@dataclass(frozen=True)
+class WireEntry:
+    """One catalogue entry: what the preset models, its rating and where that comes from.
+
+    Attributes:
+        name: Preset name.
+        description: One line.
+        config: The wire with the preset's own tip shape.
+        rated_tip_load_gf: Published tip load (gf); ``None`` for ``paper``.
+        rating_source: Where the rating comes from (URLs).
+        modelled_on: The real wire or class the preset stands for.
+        core_material: ``"nitinol"`` or ``"stainless_steel"``.
+    """
+
+    name: str
+    description: str
+    config: GuidewireConfig
+    rated_tip_load_gf: float | None = None
+    rating_source: str = ""
+    modelled_on: str = ""
+    core_material: str = "nitinol"
+
+
+@functools.cache
+def _catalogue() -> dict[str, WireEntry]:
+    text = resources.files("sim4endor.models").joinpath("wires.toml").read_text("utf-8")
+    data = tomllib.loads(text)
+    materials = data["materials"]
+    return {name: _entry(name, raw, materials) for name, raw in data["presets"].items()}
+
+
+def _entry(name: str, raw: Mapping[str, Any], materials: Mapping[str, Any]) -> WireEntry:
+    if name == PAPER:
+        return WireEntry(name, raw["description"], GuidewireConfig())
+    material = materials[raw["core_material"]]
+    profile = tuple((s * _MM, d * _MM) for s, d in raw["core_profile_mm"])
+    shape = TipShape.degrees(raw["tip_shape"]["length_mm"], raw["tip_shape"]["angle_deg"])
+    config = GuidewireConfig(
+        outer_diameter=0.014 * INCH,
+        core_diameter=profile[-1][1],  # the shaft core: the reference of every joint factor
+        core_profile=profile,
+        youngs_modulus=material["youngs_modulus_gpa"] * 1e9,
+        shear_modulus=material["shear_modulus_gpa"] * 1e9,
+        density=material["density_kg_m3"],
+        tip_length=shape.length,
+        tip_angle=shape.angle,
+        tip_stiffness_factor=1.0,  # the taper makes the tip soft
+    )
+    return WireEntry(
+        name=name, description=raw["description"], config=config,
+        rated_tip_load_gf=float(raw["rated_tip_load_gf"]), rating_source=raw["rating_source"],
+        modelled_on=raw["modelled_on"], core_material=raw["core_material"],
+    )
+
+
+def names() -> tuple[str, ...]:
+    """Returns the preset names, ``paper`` first."""
+    return tuple(_catalogue())
+
+
+def entry(name: str) -> WireEntry:
+    """Returns the catalogue entry of preset ``name``.
+
+    Raises:
+        WireCatalogueError: For an unknown name; the message lists the valid ones.
+    """
+    try:
+        return _catalogue()[name]
+    except (KeyError, TypeError):
+        raise WireCatalogueError(
+            f"Unknown wire preset {name!r}; valid: {list(names())}."
+        ) from None
+
+
+def shaped(wire: GuidewireConfig, tip: TipShape | str) -> GuidewireConfig:
+    """Returns ``wire`` with its tip shaped: a :class:`TipShape` or ``"J"``.
+
+    Raises:
+        WireCatalogueError: For a string other than ``"J"``.
+    """
+    if isinstance(tip, str):
+        if tip.upper() != "J":
+            raise WireCatalogueError(
+                f"tip must be a TipShape(length m, angle rad) or 'J', got {tip!r}."
+            )
+        return dataclasses.replace(wire, tip_length=J_LENGTH, tip_angle=J_ANGLE)
+    if not isinstance(tip, TipShape):
+        raise WireCatalogueError(
+            f"tip must be a TipShape(length m, angle rad) or 'J', got {tip!r}."
+        )
+    return dataclasses.replace(wire, tip_length=tip.length, tip_angle=tip.angle)
+
+
+def preset(name: str, tip: TipShape | str | None = None) -> GuidewireConfig:
+    """Returns the wire of preset ``name``, its tip shaped by ``tip`` if given.
+
+    Args:
+        name: One of :func:`names`.
+        tip: ``None`` keeps the preset's shape; a :class:`TipShape` or ``"J"`` reshapes it.
+
+    Raises:
+        WireCatalogueError: For an unknown name or a bad tip.
+    """
+    wire = entry(name).config
+    return wire if tip is None else shaped(wire, tip)
+
+
+def resolve(wire: str | GuidewireConfig | Mapping[str, Any] | None) -> GuidewireConfig:
+    """A user's wire setting as a config: a preset name, a config, or a mapping.
+
+    A mapping holds :class:`GuidewireConfig` fields, optionally with ``"preset"`` (the base,
+    default ``paper``) and ``"tip"`` (a :class:`TipShape`, ``"J"``, or ``{"length":,
+    "angle":}`` in m and rad). ``None`` gives ``paper``.
+
+    Raises:
+        WireCatalogueError: For an unknown preset, field or tip.
+    """
+    if wire is None:
+        return entry(PAPER).config
+    if isinstance(wire, GuidewireConfig):
+        return wire
+    if isinstance(wire, str):
+        return preset(wire)
+    if isinstance(wire, Mapping):
+        fields = dict(wire)
+        base = preset(fields.pop("preset", PAPER))
+        tip = fields.pop("tip", None)
+        valid = {f.name for f in dataclasses.fields(GuidewireConfig)}
+        unknown = sorted(set(fields) - valid)
+        if unknown:
+            raise WireCatalogueError(
+                f"Unknown wire fields {unknown}; valid: 'preset', 'tip' and {sorted(valid)}."
+            )
+        if isinstance(tip, Mapping):
+            if set(tip) != {"length", "angle"}:
+                raise WireCatalogueError(
+                    f"A wire's tip mapping needs exactly 'length' (m) and 'angle' (rad), got "
+                    f"{sorted(tip)}."
+                )
+            tip = TipShape(float(tip["length"]), float(tip["angle"]))
+        wire_config = dataclasses.replace(base, **fields)
+        return wire_config if tip is None else shaped(wire_config, tip)
+    raise WireCatalogueError(
+        f"A wire must be a preset name ({list(names())}), a GuidewireConfig or a mapping of "
+        f"its fields, got {wire!r}."
+    )

@@ -1,0 +1,182 @@
+"""The wire catalogue: presets, tip shaping, tip-load and tapered-cantilever validation, and
+``task_kwargs={"wire": ...}`` in every domain."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from sim4endor import suite, vessels
+from sim4endor.models import constants as names
+from sim4endor.models import tip_load, validation, wires
+from sim4endor.models.guidewire import (
+    GuidewireConfig,
+    GuidewireConfigError,
+    add_guidewire,
+    segment_lengths,
+)
+from sim4endor.models.scene import SceneConfig, base_spec, config_for_vessel
+from sim4endor.tasks import TaskConfigError, random_coronary
+from sim4endor.tasks.anatomy import compile_anatomy
+
+RATED = [n for n in wires.names() if wires.entry(n).rated_tip_load_gf is not None]
+
+
+def test_catalogue_has_the_issue_presets_and_paper_is_the_default_wire() -> None:
+    assert wires.names() == ("paper", "workhorse", "intermediate", "stiff")
+    assert wires.preset("paper") == GuidewireConfig() == SceneConfig().wire
+    assert wires.resolve(None) == GuidewireConfig()
+    ratings = {n: wires.entry(n).rated_tip_load_gf for n in RATED}
+    assert 0.5 <= ratings["workhorse"] <= 1.0
+    assert 3.0 <= ratings["intermediate"] <= 6.0
+    assert 11.0 <= ratings["stiff"] <= 13.0
+    for name in RATED:
+        entry = wires.entry(name)
+        assert entry.rating_source.startswith("https://")
+        assert entry.config.core_profile is not None
+        assert entry.config.outer_diameter == pytest.approx(0.014 * 0.0254)
+
+
+@pytest.mark.parametrize("name", RATED)
+def test_stored_core_profile_is_the_one_derived_from_the_rating(name: str) -> None:
+    entry = wires.entry(name)
+    wire = entry.config
+    rated = entry.rated_tip_load_gf * 1e-3 * tip_load.GRAVITY
+    # The data file's diameters reproduce the rating by beam theory (0.1 um rounding).
+    assert tip_load.buckling_load(wire) == pytest.approx(rated, rel=0.005)
+    (_, tip), (ribbon, _), (taper_end, shaft) = wire.core_profile
+    derived = tip_load.derive_tip_core_diameter(wire, rated, ribbon, taper_end, shaft)
+    assert derived == pytest.approx(tip, abs=1e-7)
+
+
+def test_buckling_solver_matches_euler_for_a_uniform_column() -> None:
+    wire = GuidewireConfig(tip_stiffness_factor=1.0)
+    exact = math.pi**2 * wire.bending_stiffness / (4 * 0.01**2)
+    assert tip_load.buckling_load(wire) == pytest.approx(exact, rel=1e-4)
+    assert tip_load.gram_force(exact) == pytest.approx(118.5, abs=0.1)  # issue 15's figure
+
+
+@pytest.mark.parametrize("name", RATED)
+def test_simulated_tip_load_is_within_20_percent_of_the_rating(name: str) -> None:
+    entry = wires.entry(name)
+    result = tip_load.simulate_tip_load(entry.config)
+    assert result.free_length == pytest.approx(tip_load.TEST_FREE_LENGTH, abs=1e-6)
+    assert result.lateral > 0.1 * result.free_length  # it buckled, not just pressed
+    assert abs(result.force_gf - entry.rated_tip_load_gf) <= 0.2 * entry.rated_tip_load_gf
+    # Tighter: the chain reproduces the continuous rod's buckling load (elastica + 1 %).
+    assert result.force / result.predicted == pytest.approx(1.0, abs=0.06)
+
+
+def test_stiffer_core_gives_a_higher_simulated_tip_load() -> None:
+    loads = [tip_load.simulate_tip_load(wires.preset(n)).force for n in RATED]
+    assert loads == sorted(loads)
+
+
+@pytest.mark.parametrize("name", RATED)
+def test_tapered_cantilever_matches_integrated_euler_bernoulli(name: str) -> None:
+    # 30 mm: mostly taper, where E·I varies up to 40-fold.
+    wire = dataclasses.replace(wires.preset(name), length=0.03, mass_scale=1.0)
+    result = validation.tapered_cantilever(wire, settle_time=2.0)
+    assert result.relative_error < 0.05
+    # The taper is in the model: the shaft's E·I alone would predict 1.75-5.8x less.
+    uniform = result.force * result.free_length**3 / (3 * wire.bending_stiffness)
+    assert result.deflection > 1.5 * uniform
+
+
+def test_core_capsules_follow_the_profile() -> None:
+    wire = wires.preset("workhorse")
+    spec = base_spec()
+    add_guidewire(spec, spec.worldbody.add_body(name="mount"), wire)
+    model = spec.compile()
+    radii = []
+    for b in range(wire.num_segments):
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.wire_body(b))
+        radii.append(model.geom_size[model.body_geomadr[body], 0])
+    lengths = segment_lengths(wire)
+    # Deep in the shaft the factor is the Voronoi one of a uniform rod.
+    assert radii[3] == pytest.approx(0.5 * wire.core_diameter, rel=1e-6)
+    # The last joint sits in the ribbon: factor (d_tip / d_shaft)^4 x l_prev / l_cell.
+    (_, tip), *_ = wire.core_profile
+    expected = (tip / wire.core_diameter) ** 4 * lengths[-2] / (0.5 * (lengths[-2] + lengths[-1]))
+    assert (2 * radii[-1] / wire.core_diameter) ** 4 == pytest.approx(expected, rel=1e-6)
+
+
+def test_tip_shapes_and_their_errors() -> None:
+    shaped = wires.preset("workhorse", tip=wires.TipShape.degrees(1.5, 60.0))
+    assert (shaped.tip_length, shaped.tip_angle) == pytest.approx((0.0015, math.radians(60)))
+    j_tip = wires.preset("intermediate", tip="J")
+    assert j_tip.tip_angle == pytest.approx(wires.J_ANGLE)
+    with pytest.raises(wires.WireCatalogueError, match=r"TipShape\.length"):
+        wires.TipShape(0.005, math.radians(45))
+    with pytest.raises(wires.WireCatalogueError, match=r"TipShape\.angle"):
+        wires.TipShape.degrees(2.0, 120.0)
+    with pytest.raises(wires.WireCatalogueError, match="'S'"):
+        wires.preset("workhorse", tip="S")
+    # config_for_vessel still narrows a tip that does not fit the lumen.
+    vessel = vessels.load("simplified_phantom")
+    fitted = config_for_vessel(vessel, SceneConfig(wire=j_tip)).wire
+    assert fitted.tip_angle < wires.J_ANGLE
+
+
+def test_unknown_presets_and_bad_profiles_name_the_input() -> None:
+    with pytest.raises(wires.WireCatalogueError, match=r"'floppy'.*'workhorse'"):
+        wires.preset("floppy")
+    with pytest.raises(wires.WireCatalogueError, match=r"Unknown wire fields \['colour'\]"):
+        wires.resolve({"preset": "stiff", "colour": "blue"})
+    with pytest.raises(wires.WireCatalogueError, match=r"'length' \(m\) and 'angle'"):
+        wires.resolve({"preset": "stiff", "tip": {"length": 0.002}})
+    bent = wires.resolve({"preset": "stiff", "tip": {"length": 0.002, "angle": 1.0}})
+    assert (bent.tip_length, bent.tip_angle) == (0.002, 1.0)
+    with pytest.raises(GuidewireConfigError, match="core_profile distances"):
+        GuidewireConfig(core_profile=((0.001, 1e-4), (0.01, 2e-4)))
+    with pytest.raises(GuidewireConfigError, match="core_profile diameters"):
+        GuidewireConfig(core_profile=((0.0, 1e-4), (0.01, 1e-3)))
+    with pytest.raises(GuidewireConfigError, match="core_profile must be"):
+        GuidewireConfig(core_profile=((0.0,),))  # type: ignore[arg-type]
+
+
+def _tip_core_radius(env: suite.NavigationEnvironment) -> float:
+    model = env.physics.model.ptr
+    site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE)
+    return float(model.geom_size[model.body_geomadr[model.site_bodyid[site]], 0])
+
+
+@pytest.mark.parametrize(
+    ("domain", "task", "extra"),
+    [("simplified_phantom", "task_a", {}), ("vascular_phantom", "task_b", {}),
+     ("vessel", "navigate", {"vessel": "simplified_phantom", "target": "B"})],
+)
+def test_every_fixed_domain_takes_a_wire(domain: str, task: str, extra: dict) -> None:
+    paper = _tip_core_radius(suite.load(domain, task, {**extra}))
+    for wire in ("workhorse", wires.preset("stiff"), {"preset": "intermediate", "tip": "J"}):
+        env = suite.load(domain, task, {**extra, "wire": wire, "random": 0})
+        env.reset()
+        assert np.isfinite(env.step([1.0, 0.0]).reward)
+        assert _tip_core_radius(env) < 0.5 * paper  # the tapered tip, not the paper's rod
+    with pytest.raises(TaskConfigError, match=r"wire.*'noodle'.*\['paper', 'workhorse'"):
+        suite.load(domain, task, {**extra, "wire": "noodle"})
+
+
+def test_random_coronary_takes_a_wire_and_its_tree_cache_ignores_it(
+    tmp_path, monkeypatch
+) -> None:
+    calls = []
+
+    def fake_member(seed, cache_dir, scene=None):  # stands in for a 10 s tree build
+        calls.append((seed, cache_dir, scene))
+        return compile_anatomy("simplified_phantom", scene, fit=False)
+
+    monkeypatch.setattr(random_coronary, "build_member", fake_member)
+    for wire in ("paper", "workhorse"):
+        env = suite.load("random_coronary", "navigate",
+                         {"wire": wire, "pool_size": 1, "cache_dir": tmp_path, "random": 0})
+        env.reset()
+    (seed_a, dir_a, scene_a), (seed_b, dir_b, scene_b) = calls
+    assert (seed_a, dir_a) == (seed_b, dir_b)  # same tree folder for both wires
+    assert scene_a.wire == GuidewireConfig() and scene_b.wire == wires.preset("workhorse")
+    with pytest.raises(TaskConfigError, match="valid"):
+        suite.load("random_coronary", "navigate", {"wire": "noodle", "cache_dir": tmp_path})
