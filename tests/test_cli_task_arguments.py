@@ -72,6 +72,16 @@ def test_train_flags_reach_the_config_and_a_refused_argument_writes_nothing(
     assert not out.exists()
 
 
+def test_an_unknown_wire_preset_is_refused_by_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    status, _, err = _cli(["train", "sac", "--wire", "floppy", "--frames", "10", "--out",
+                           str(out), "--no-progress"], capsys)
+    assert status == 2 and "floppy" in err and "workhorse" in err
+    assert not out.exists()
+
+
 def test_render_needs_a_task_unless_the_policy_is_a_run(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

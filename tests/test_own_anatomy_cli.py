@@ -70,6 +70,7 @@ def test_mesh_to_exported_policy_from_the_command_line(tmp_path: Path) -> None:
     assert expert.startswith("my_y_expert.mp4: success after")
     config = (tmp_path / "runs" / "my_y" / "config.yaml").read_text()
     assert f"vessel: {tmp_path / 'vessels_user' / 'my_y'}" in config and "target: T1" in config
+    assert "wire: workhorse" in config
     assert json.loads(train.splitlines()[-1])["trials"] == 2
     assert re.search(r"^trials\s+2$", evaluate, re.M)
     assert sac.startswith("my_y_sac.mp4: ") and (tmp_path / "my_y_sac.mp4").stat().st_size > 0
