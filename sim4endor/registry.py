@@ -89,6 +89,16 @@ ENTRIES: tuple[TaskEntry, ...] = (
         description="A seeded random coronary tree and terminal target per episode.",
     ),
     TaskEntry(
+        domain="coronary",
+        task="navigate",
+        gym_id=f"{GYM_NAMESPACE}/Coronary-v0",
+        tags=frozenset({TAG_RANDOMISED}),
+        vessel=None,
+        target=None,
+        description="A left or right coronary tree of normal calibre behind a guide catheter, "
+                    "and a distal branch end as target, per episode (workhorse wire).",
+    ),
+    TaskEntry(
         domain="vessel",
         task="navigate",
         gym_id=f"{GYM_NAMESPACE}/Vessel-v0",

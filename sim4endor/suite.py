@@ -82,6 +82,7 @@ from sim4endor.tasks import (
     PixelsConfig,
     TaskConfigError,
     TerminationConfig,
+    coronary,
     random_coronary,
 )
 from sim4endor.tasks.anatomy import compile_anatomy
@@ -100,6 +101,7 @@ _COMMON_KWARGS = (
 _DOMAIN_KWARGS: Mapping[str, tuple[str, ...]] = {
     "vessel": ("vessel", "target"),
     "random_coronary": ("pool_size", "pool_seed", "cache_dir"),
+    "coronary": ("pool_size", "pool_seed", "side", "target", "cache_dir"),
 }
 
 
@@ -233,21 +235,34 @@ def _environment_kwargs(given: Mapping[str, Any]) -> dict[str, Any]:
     return dict(given)
 
 
-def _scene(kwargs: Mapping[str, Any]) -> SceneConfig:
+def _scene(kwargs: Mapping[str, Any], default_wire: str | None = None) -> SceneConfig:
     """The scene of task_kwargs ``wire``: a preset name, a GuidewireConfig or a mapping."""
     try:
-        return SceneConfig(wire=wires.resolve(kwargs.get("wire")))
+        return SceneConfig(wire=wires.resolve(kwargs.get("wire", default_wire)))
     except Sim4EndoRError as exc:
         raise TaskConfigError(f"task_kwargs wire: {exc}") from None
 
 
+def _cache_dir(kwargs: Mapping[str, Any]) -> Path | None:
+    return None if kwargs.get("cache_dir") is None else Path(kwargs["cache_dir"])
+
+
 def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> AnatomySource:
+    if entry.domain == "coronary":
+        return coronary.pool(
+            size=_integer(kwargs, "pool_size", coronary.DEFAULT_POOL_SIZE, minimum=1),
+            seed=_integer(kwargs, "pool_seed", 0, minimum=0),
+            side=kwargs.get("side", "both"),
+            cache_dir=_cache_dir(kwargs),
+            scene=_scene(kwargs, coronary.DEFAULT_WIRE),
+            target=None if kwargs.get("target") is None else str(kwargs["target"]),
+        )
     scene = _scene(kwargs)
     if entry.domain == "random_coronary":
         return random_coronary.pool(
             size=_integer(kwargs, "pool_size", random_coronary.DEFAULT_POOL_SIZE, minimum=1),
             seed=_integer(kwargs, "pool_seed", 0, minimum=0),
-            cache_dir=None if kwargs.get("cache_dir") is None else Path(kwargs["cache_dir"]),
+            cache_dir=_cache_dir(kwargs),
             scene=scene,
         )
     if entry.vessel is not None and entry.target is not None:

@@ -6,8 +6,14 @@ geometry (the vascular phantom's target B was, before it was regenerated); a lea
 success rate is only meaningful on targets the expert reaches. Prints, per task, successes out
 of the seeded episodes, how the others ended, and the mean procedure time of the successes.
 
+On the ``coronary`` domain (``--domain coronary``) it runs every distal target of ``--trees``
+generated trees (seeds ``--first-seed`` on, alternately left and right; the default 1000 on is
+used by no test or tuning) once each with the ``--wire`` preset (default ``workhorse``), and
+prints each (tree, target) and the overall success rate.
+
 Usage:
     python experiments/benchmarks/expert_reachability.py [--episodes 8] [--json]
+    python experiments/benchmarks/expert_reachability.py --domain coronary --trees 20
 """
 
 from __future__ import annotations
@@ -44,11 +50,47 @@ def reachability(domain: str, task: str, episodes: int) -> dict[str, object]:
     }
 
 
+def coronary_reachability(first_seed: int, trees: int, wire: str, as_json: bool) -> None:
+    """Runs the expert once on every distal target of ``trees`` coronary trees."""
+    expert = CenterlineExpert()
+    outcomes: collections.Counter[str] = collections.Counter()
+    for seed in range(first_seed, first_seed + trees):
+        tree = {"pool_seed": seed, "pool_size": 1, "wire": wire}
+        targets = sorted(suite.load("coronary", "navigate", tree).task.anatomy.vessel.targets)
+        for target in targets:
+            env = suite.load("coronary", "navigate", {**tree, "random": seed, "target": target})
+            info = run_expert(env, expert)
+            outcome = "success" if info["is_success"] else str(info["failure"] or "timeout")
+            outcomes[outcome] += 1
+            row = {"seed": seed, "tree": env.task.anatomy.vessel.name, "target": target,
+                   "outcome": outcome, "time_s": round(env.physics.time(), 2),
+                   "distance_mm": round(float(info["manifold_distance"]) * 1e3, 1)}
+            print(json.dumps(row) if as_json else
+                  f"{row['tree']} {target}: {outcome} at {row['time_s']} s, "
+                  f"D {row['distance_mm']} mm", flush=True)
+            env.close()
+    total = sum(outcomes.values())
+    summary = {"domain": "coronary", "wire": wire, "trees": trees, "first_seed": first_seed,
+               "episodes": total, "successes": outcomes["success"],
+               "success_rate": outcomes["success"] / total, "outcomes": dict(outcomes)}
+    print(json.dumps(summary) if as_json else
+          f"coronary ({wire} wire, {trees} trees from seed {first_seed}): "
+          f"{outcomes['success']}/{total} reached ({outcomes['success'] / total:.0%}); "
+          f"outcomes {dict(outcomes)}", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=8, help="seeded episodes per task")
     parser.add_argument("--json", action="store_true", help="one JSON line per task")
+    parser.add_argument("--domain", choices=("phantoms", "coronary"), default="phantoms")
+    parser.add_argument("--trees", type=int, default=20, help="coronary trees")
+    parser.add_argument("--first-seed", type=int, default=1000, help="first coronary tree seed")
+    parser.add_argument("--wire", default="workhorse", help="wire preset (coronary)")
     args = parser.parse_args()
+    if args.domain == "coronary":
+        coronary_reachability(args.first_seed, args.trees, args.wire, args.json)
+        return
     for domain, task in TASKS:
         row = reachability(domain, task, args.episodes)
         if args.json:

@@ -70,22 +70,34 @@ def config_for_vessel(
     driver = dataclasses.replace(base.driver, max_insertion=depth + margin)
     length = driver.max_insertion + driver.initial_protrusion + 0.003
     wire = dataclasses.replace(base.wire, length=length)
-    room = tip_fill * (float(graph.radii.min()) - wire.radius)
+    wire = fit_tip(wire, float(graph.radii.min()), tip_fill, vessel.name)
+    return dataclasses.replace(base, driver=driver, wire=wire)
+
+
+def fit_tip(wire: GuidewireConfig, lumen_radius: float, tip_fill: float = 0.85,
+            where: str = "the vessel") -> GuidewireConfig:
+    """Returns ``wire`` with its tip angle reduced until the pre-bent tip's lateral offset is
+    at most ``tip_fill`` × (``lumen_radius`` − wire radius).
+
+    Raises:
+        SceneError: If the lumen is not wider than the wire.
+    """
+    room = tip_fill * (lumen_radius - wire.radius)
     if room <= 0:
         raise SceneError(
-            f"{vessel.name}'s narrowest lumen ({graph.radii.min() * 1e3:.2f} mm radius) is not "
+            f"{where}'s narrowest lumen ({lumen_radius * 1e3:.2f} mm radius) is not "
             f"wider than the wire ({wire.radius * 1e3:.2f} mm radius)."
         )
-    if wire.tip_lateral_offset > room:
-        low, high = 0.0, wire.tip_angle  # bisection: the offset grows with the angle
-        while high - low > 1e-5:
-            middle = 0.5 * (low + high)
-            if dataclasses.replace(wire, tip_angle=middle).tip_lateral_offset > room:
-                high = middle
-            else:
-                low = middle
-        wire = dataclasses.replace(wire, tip_angle=low)
-    return dataclasses.replace(base, driver=driver, wire=wire)
+    if wire.tip_lateral_offset <= room:
+        return wire
+    low, high = 0.0, wire.tip_angle  # bisection: the offset grows with the angle
+    while high - low > 1e-5:
+        middle = 0.5 * (low + high)
+        if dataclasses.replace(wire, tip_angle=middle).tip_lateral_offset > room:
+            high = middle
+        else:
+            low = middle
+    return dataclasses.replace(wire, tip_angle=low)
 
 
 def base_spec() -> mujoco.MjSpec:

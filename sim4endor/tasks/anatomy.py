@@ -7,9 +7,11 @@ randomly generated trees compiles each anatomy once, the first time it is drawn.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
@@ -18,6 +20,11 @@ from sim4endor import vessels
 from sim4endor.models.scene import SceneConfig, build_model, config_for_vessel
 from sim4endor.tasks.config import TaskConfigError
 from sim4endor.vessels import Vessel
+from sim4endor.vessels.manifest import MANIFEST_FILE
+
+if TYPE_CHECKING:
+    from sim4endor.vessels.build import BuildParams
+    from sim4endor.vessels.generators import GeneratedAnatomy
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,16 +107,20 @@ class AnatomyPool(AnatomySource):
     themselves cache their vessel folders on disk.
     """
 
-    def __init__(self, builders: Sequence[Callable[[], Anatomy]]) -> None:
+    def __init__(self, builders: Sequence[Callable[[], Anatomy]], target: str | None = None
+                 ) -> None:
         """Stores the builders.
 
         Args:
             builders: One zero-argument function per pool member returning its anatomy.
+            target: Aim every episode at this target label (every member drawn must have
+                it); ``None`` draws one of the member's targets.
         """
         if not builders:
             raise TaskConfigError("An anatomy pool needs at least one member.")
         self._builders = tuple(builders)
         self._built: dict[int, Anatomy] = {}
+        self._target = target
 
     def _get(self, index: int) -> Anatomy:
         if index not in self._built:
@@ -120,11 +131,44 @@ class AnatomyPool(AnatomySource):
         """Draws a member uniformly, then one of its targets uniformly."""
         anatomy = self._get(int(random.randint(len(self._builders))))
         targets = sorted(anatomy.vessel.targets)
+        if self._target is not None:
+            check_target(anatomy.vessel, self._target)
+            return anatomy, self._target
         return anatomy, targets[int(random.randint(len(targets)))]
 
     def initial(self) -> Anatomy:
         """Returns the first member (built now if needed)."""
-        return self._get(0)
+        anatomy = self._get(0)
+        if self._target is not None:
+            check_target(anatomy.vessel, self._target)
+        return anatomy
+
+
+def cached_build(tree: GeneratedAnatomy, name: str, cache_dir: Path, config: object,
+                 params: BuildParams) -> Path:
+    """Builds a generated tree into ``cache_dir`` once; returns its vessel folder.
+
+    The folder name carries a hash of the generated lumen, the generator config and the build
+    settings, so a changed generator or package version builds a new folder instead of
+    silently reusing a stale one, and processes sharing the cache never rewrite a folder
+    another one is reading.
+    """
+    from sim4endor.vessels.build import build_vessel, content_hash
+
+    digest = content_hash(tree.lumen, config=repr(config), params=repr(params))[:12]
+    folder = cache_dir / f"{name}_{digest}"
+    if not (folder / MANIFEST_FILE).is_file():
+        build_vessel(tree.lumen, name=name, out_dir=folder, units="m",
+                     centerline=tree.centerline, inlet=tree.inlet_position,
+                     targets=tree.targets, source=tree.description, params=params,
+                     progress=False)
+    return folder
+
+
+def default_cache_dir(domain: str) -> Path:
+    """Returns ``$XDG_CACHE_HOME/sim4endor/DOMAIN`` (default under ``~/.cache``)."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "sim4endor" / domain
 
 
 def check_target(vessel: Vessel, target: str) -> None:

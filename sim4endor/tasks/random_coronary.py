@@ -17,12 +17,11 @@ lumen-open and wall-closed checks still pass (1.0 and 1.0 for seed 0, 606 hulls)
 from __future__ import annotations
 
 import functools
-import os
 from pathlib import Path
 
 from sim4endor.models.scene import SceneConfig
+from sim4endor.tasks import anatomy
 from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, compile_anatomy
-from sim4endor.vessels.manifest import MANIFEST_FILE
 
 #: Pool members when ``task_kwargs`` does not say.
 DEFAULT_POOL_SIZE = 8
@@ -36,41 +35,24 @@ LEVELS = 2
 
 def default_cache_dir() -> Path:
     """Returns ``$XDG_CACHE_HOME/sim4endor/random_coronary`` (default under ``~/.cache``)."""
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "sim4endor" / "random_coronary"
+    return anatomy.default_cache_dir("random_coronary")
 
 
 def build_member(seed: int, cache_dir: Path, scene: SceneConfig | None = None) -> Anatomy:
     """Generates the pool tree of ``seed``, builds it once (cached on disk) and compiles it.
 
-    Generating costs under a second; the folder name carries a hash of the generated lumen
-    and the build settings, so a changed generator or package version builds a new folder
-    instead of silently reusing a stale one, and processes sharing the cache never rewrite a
-    folder another one is reading. The wire is not part of the folder: only the compiled
-    scene (``scene``, default :class:`SceneConfig`) depends on it.
+    Generating costs under a second (see :func:`~sim4endor.tasks.anatomy.cached_build` for
+    the cache). The wire is not part of the folder: only the compiled scene (``scene``,
+    default :class:`SceneConfig`) depends on it.
     """
-    from sim4endor.vessels.build import BuildParams, build_vessel, content_hash
+    from sim4endor.vessels.build import BuildParams
     from sim4endor.vessels.generators import CoronaryTreeConfig, coronary_tree
     from sim4endor.vessels.walls import WallParams
 
     config = CoronaryTreeConfig(levels=LEVELS, root_radius=ROOT_RADIUS, min_radius=MIN_RADIUS)
     params = BuildParams(wall=WallParams(use_coacd=False))
-    tree = coronary_tree(config, seed=seed)
-    digest = content_hash(tree.lumen, config=repr(config), params=repr(params))[:12]
-    folder = cache_dir / f"coronary_{seed:05d}_{digest}"
-    if not (folder / MANIFEST_FILE).is_file():
-        build_vessel(
-            tree.lumen,
-            name=f"coronary_{seed:05d}",
-            out_dir=folder,
-            units="m",
-            centerline=tree.centerline,
-            inlet=tree.inlet_position,
-            targets=tree.targets,
-            source=tree.description,
-            params=params,
-            progress=False,
-        )
+    folder = anatomy.cached_build(coronary_tree(config, seed=seed), f"coronary_{seed:05d}",
+                                  cache_dir, config, params)
     return compile_anatomy(folder, scene, fit=False)
 
 

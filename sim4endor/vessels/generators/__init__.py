@@ -21,6 +21,10 @@ from typing import Any
 
 from sim4endor.vessels.generators.anatomy import GeneratedAnatomy, MeshResolution
 from sim4endor.vessels.generators.coronary import CoronaryTreeConfig, coronary_tree
+from sim4endor.vessels.generators.coronary_arteries import (
+    CoronaryArteriesConfig,
+    coronary_arteries,
+)
 from sim4endor.vessels.generators.paths import GeneratorConfigError
 from sim4endor.vessels.generators.phantoms import (
     SimplifiedPhantomConfig,
@@ -33,6 +37,7 @@ from sim4endor.vessels.walls import WallParams
 __all__ = [
     "GENERATORS",
     "SHIPPED_PHANTOM_WALL",
+    "CoronaryArteriesConfig",
     "CoronaryTreeConfig",
     "GeneratedAnatomy",
     "Generator",
@@ -40,6 +45,7 @@ __all__ = [
     "MeshResolution",
     "SimplifiedPhantomConfig",
     "VascularPhantomConfig",
+    "coronary_arteries",
     "coronary_tree",
     "simplified_phantom",
     "vascular_phantom",
@@ -85,5 +91,11 @@ GENERATORS: MappingProxyType[str, Generator] = MappingProxyType({
     "coronary_tree": Generator(
         CoronaryTreeConfig, coronary_tree,
         "seeded random coronary tree (Murray's law radii, tortuous branches, 2-4 levels)",
+    ),
+    "coronary_arteries": Generator(
+        CoronaryArteriesConfig, coronary_arteries,
+        "seeded left or right coronary tree of normal calibre (Dodge 1992, Finet's law) "
+        "behind a 7F guide catheter; optional stenoses",
+        WallParams(use_coacd=False),
     ),
 })

@@ -85,6 +85,33 @@ class GeneratedAnatomy:
     description: str
 
 
+@dataclass(frozen=True)
+class Stenosis:
+    """A focal narrowing of a branch: a cosine-shaped dip of the lumen diameter.
+
+    Attributes:
+        center: Where along the branch, as a fraction of its length.
+        length: Axial length of the narrowing (m).
+        severity: Diameter reduction at its centre (0.5 = 50 % diameter stenosis).
+    """
+
+    center: float
+    length: float
+    severity: float
+
+    def __post_init__(self) -> None:
+        if not (0 < self.center < 1 and self.length > 0 and 0 < self.severity < 1):
+            raise GeneratorConfigError(
+                f"Stenosis needs 0 < center < 1, length > 0 and 0 < severity < 1, got {self}."
+            )
+
+    def factor(self, arc: FloatArray, branch_length: float) -> FloatArray:
+        """Diameter factor (1 outside the narrowing) at arc lengths ``arc`` (m)."""
+        offset = np.abs(arc - self.center * branch_length) / (0.5 * self.length)
+        dip = 0.5 * (1.0 + np.cos(np.pi * np.minimum(offset, 1.0)))
+        return 1.0 - self.severity * dip
+
+
 @dataclass(frozen=True, eq=False)
 class BranchPlan:
     """A branch before sampling: where it starts, its path and its radius taper.
@@ -96,6 +123,11 @@ class BranchPlan:
         radius_start: Lumen radius at the first point (m).
         radius_end: Lumen radius at the last point (m); linear in arc length between.
         parent: Index of the parent plan, ``None`` for the root.
+        stenosis: An optional focal narrowing on top of the taper.
+        inlet_radii: Optional (arc length (m), radius (m)) knots replacing the linear taper
+            up to the last knot's arc length, where it joins ``radius_end``'s taper at the
+            knot's radius: e.g. a guide catheter's bore widening into the ostium. Part of
+            the same branch because coaxial tubes joined end to end leave sliver faces.
     """
 
     name: str
@@ -104,6 +136,8 @@ class BranchPlan:
     radius_start: float
     radius_end: float
     parent: int | None = None
+    stenosis: Stenosis | None = None
+    inlet_radii: tuple[tuple[float, float], ...] = ()
 
     @property
     def length(self) -> float:
@@ -118,7 +152,10 @@ class BranchPlan:
         """Returns the branch sampled about every ``spacing`` metres."""
         points, _ = trace(self.start, self.segments, spacing)
         arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-        radii = np.interp(arc, [0.0, arc[-1]], [self.radius_start, self.radius_end])
+        knots = [(0.0, self.radius_start), *self.inlet_radii, (float(arc[-1]), self.radius_end)]
+        radii = np.interp(arc, [a for a, _ in knots], [r for _, r in knots])
+        if self.stenosis is not None:
+            radii = radii * self.stenosis.factor(arc, float(arc[-1]))
         return TubeBranch(self.name, points, radii, self.parent)
 
 

@@ -34,6 +34,12 @@ def _parse(text: str, kind: Any, key: str) -> Any:
         if text.strip().lower() == "none" and len(options) < len(typing.get_args(kind)):
             return None
         return _parse(text, options[0], key)
+    if origin is typing.Literal:
+        if text not in typing.get_args(kind):
+            raise GeneratorConfigError(
+                f"--set {key}={text}: choose one of {list(typing.get_args(kind))}."
+            )
+        return text
     if origin is tuple:
         item = typing.get_args(kind)[0]
         return tuple(_parse(part, item, key) for part in text.split(","))
@@ -141,7 +147,8 @@ def generate_vessel(generator: str, *, out_dir: Path, name: str | None = None, s
 
 def default_name(generator: str, seed: int) -> str:
     """Returns the default vessel name: the generator name, plus the seed for random trees."""
-    return f"{generator}_seed{seed}" if generator == "coronary_tree" else generator
+    seeded = generator in ("coronary_tree", "coronary_arteries")
+    return f"{generator}_seed{seed}" if seeded else generator
 
 
 def add_generate_parser(subparsers: Any) -> None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -126,14 +127,43 @@ def murray_split(parent_radius: float, asymmetry: float, exponent: float
     return r1, r2, angle(r12, r22), angle(r22, r12)
 
 
-def tortuous_path(length: float, radius: float, config: CoronaryTreeConfig,
-                  rng: np.random.Generator) -> tuple[Segment, ...]:
-    """Returns a smooth random path of ``length`` metres as a run of short arcs."""
+class Tortuosity(Protocol):
+    """The curvature settings a tortuous path reads (of a tree generator's config)."""
+
+    @property
+    def curvature_rms(self) -> float: ...
+    @property
+    def curvature_length(self) -> float: ...
+    @property
+    def max_curvature_ratio(self) -> float: ...
+
+
+class Clearance(Protocol):
+    """The spacing settings :func:`fits` reads (of a tree generator's config)."""
+
+    @property
+    def clearance(self) -> float: ...
+    @property
+    def inlet_keep_out(self) -> float: ...
+
+
+def tortuous_path(length: float, radius: float, config: Tortuosity,
+                  rng: np.random.Generator, base: float = 0.0) -> tuple[Segment, ...]:
+    """Returns a smooth random path of ``length`` metres as a run of short arcs.
+
+    Args:
+        length: Axis length (m).
+        radius: Lumen radius, which caps the curvature (m).
+        config: RMS and correlation length of the random curvature, and its cap.
+        rng: The tree's generator.
+        base: A steady curvature (1/m) added in one plane (the path's initial normal), e.g.
+            an artery following the heart's surface; 0 for noise only.
+    """
     piece = min(config.curvature_length / 4.0, length / 4.0)
     count = max(4, math.ceil(length / piece))
     piece = length / count
     noise = rng.standard_normal((count, 2))
-    if config.curvature_rms == 0.0:
+    if config.curvature_rms == 0.0 and base == 0.0:
         return (Straight(length),)
     sigma = config.curvature_length / piece
     smooth = gaussian_filter1d(noise, sigma, axis=0, mode="reflect")
@@ -141,7 +171,7 @@ def tortuous_path(length: float, radius: float, config: CoronaryTreeConfig,
     impulse = np.zeros(8 * math.ceil(sigma) + 1)
     impulse[len(impulse) // 2] = 1.0
     gain = float(np.linalg.norm(gaussian_filter1d(impulse, sigma)))
-    curvature = smooth / gain * config.curvature_rms / math.sqrt(2.0)
+    curvature = smooth / gain * config.curvature_rms / math.sqrt(2.0) + np.array([base, 0.0])
     magnitude = np.linalg.norm(curvature, axis=1)
     cap = config.max_curvature_ratio / radius
     segments: list[Segment] = []
@@ -154,7 +184,9 @@ def tortuous_path(length: float, radius: float, config: CoronaryTreeConfig,
     return tuple(segments)
 
 
-def _fits(plans: list[BranchPlan], candidate: BranchPlan, config: CoronaryTreeConfig) -> bool:
+def fits(plans: list[BranchPlan], candidate: BranchPlan, config: Clearance) -> bool:
+    """True if ``candidate`` keeps ``config.clearance`` from the rest of the tree and out of
+    the space behind the inlet where the introducer sheath is."""
     trial = [*plans, candidate]
     branches = [plan.sample(_CHECK_SPACING) for plan in trial]
     points, radii = branches[-1].points[1:], branches[-1].radii[1:]
@@ -238,7 +270,7 @@ def _grow_children(plans: list[BranchPlan], index: int, config: CoronaryTreeConf
                 max(config.taper * radius, config.min_radius),
                 parent=index,
             )
-            if _fits(plans, candidate, config):
+            if fits(plans, candidate, config):
                 plans.append(candidate)
                 plane = roll if k == 0 else plane
                 placed += 1

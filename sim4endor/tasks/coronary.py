@@ -1,0 +1,107 @@
+"""The ``coronary`` domain: left and right coronary trees of normal calibre behind a guide catheter.
+
+Each episode draws one tree of a seeded pool (seeds ``pool_seed ... pool_seed + pool_size -
+1``) and any distal branch end of it as the target. A tree is a
+:func:`~sim4endor.vessels.generators.coronary_arteries.coronary_arteries` anatomy: left
+(LM → LAD with two diagonals, LCX with an obtuse marginal) for even seeds and right (RCA
+with the acute marginal, PDA and posterolateral branch) for odd ones, unless ``side`` says;
+it is generated and built the first time an episode draws it, cached on disk (named by seed
+and content hash) and compiled once.
+
+The wire defaults to the catalogue's ``workhorse`` (PCI is done with 0.014 in workhorse wires
+of about 1 gf); every tree of a pool gets the same wire and driver, so observation sizes agree:
+the driver's travel covers the deepest target of any tree (152 mm measured over 80 trees) and
+the pre-bent tip is narrowed once to the smallest lumen the generator draws.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from pathlib import Path
+from typing import Literal
+
+from sim4endor.models import wires
+from sim4endor.models.scene import SceneConfig, fit_tip
+from sim4endor.tasks import anatomy
+from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, compile_anatomy
+from sim4endor.tasks.config import TaskConfigError
+
+#: Pool members when ``task_kwargs`` does not say.
+DEFAULT_POOL_SIZE = 8
+#: The wire when ``task_kwargs`` does not say.
+DEFAULT_WIRE = "workhorse"
+#: Insertion travel of the driver (m): the deepest target of 80 generated trees (40 left, 40
+#: right, seeds 0-39) lay 152 mm along the centerline from the catheter's proximal end.
+MAX_INSERTION = 0.16
+
+Sides = Literal["left", "right", "both"]
+
+
+def default_cache_dir() -> Path:
+    """Returns ``$XDG_CACHE_HOME/sim4endor/coronary`` (default under ``~/.cache``)."""
+    return anatomy.default_cache_dir("coronary")
+
+
+def side_of(seed: int, side: Sides) -> Literal["left", "right"]:
+    """The tree side of a pool seed: ``side``, or left for even seeds and right for odd."""
+    if side == "both":
+        return "left" if seed % 2 == 0 else "right"
+    return side
+
+
+def scene_for(base: SceneConfig | None) -> SceneConfig:
+    """The scene every tree of a pool is compiled with: travel to the deepest target, the
+    wire long enough for it, and the tip narrowed to the generator's smallest lumen."""
+    from sim4endor.vessels.generators.coronary_arteries import CoronaryArteriesConfig
+
+    scene = base or SceneConfig(wire=wires.preset(DEFAULT_WIRE))
+    driver = dataclasses.replace(scene.driver, max_insertion=MAX_INSERTION)
+    wire = dataclasses.replace(
+        scene.wire, length=MAX_INSERTION + driver.initial_protrusion + 0.003
+    )
+    smallest = CoronaryArteriesConfig().min_diameter / 2
+    return dataclasses.replace(scene, driver=driver,
+                               wire=fit_tip(wire, smallest, where="a coronary tree"))
+
+
+def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig) -> Anatomy:
+    """Generates the tree of ``seed``, builds it once (cached on disk) and compiles it."""
+    from sim4endor.vessels.build import BuildParams
+    from sim4endor.vessels.generators.coronary_arteries import (
+        CoronaryArteriesConfig,
+        coronary_arteries,
+    )
+    from sim4endor.vessels.walls import WallParams
+
+    config = CoronaryArteriesConfig(side=side_of(seed, side))
+    # Plain hulls and bisection, as for random_coronary: CoACD saves no hulls on tubes.
+    params = BuildParams(wall=WallParams(use_coacd=False))
+    name = f"{config.side}_coronary_{seed:05d}"
+    folder = anatomy.cached_build(coronary_arteries(config, seed=seed), name, cache_dir,
+                                  config, params)
+    return compile_anatomy(folder, scene, fit=False)
+
+
+def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = None,
+         scene: SceneConfig | None = None, target: str | None = None) -> AnatomyPool:
+    """Returns the lazily built pool of ``size`` trees with seeds ``seed ... seed + size - 1``.
+
+    Args:
+        size: Number of trees.
+        seed: Seed of the first tree.
+        side: ``"left"``, ``"right"`` or ``"both"`` (even seeds left, odd seeds right).
+        cache_dir: Where built trees are kept (default :func:`default_cache_dir`).
+        scene: Wire, driver and timestep; the driver's travel and the wire's length and tip
+            are fitted (:func:`scene_for`). Default: the ``workhorse`` wire.
+        target: Aim at this branch end (e.g. ``"D1"``) in every episode instead of drawing
+            one; every tree drawn must have it (a left target in a right tree is an error).
+    """
+    if side not in ("left", "right", "both"):
+        raise TaskConfigError(f"task_kwargs side must be 'left', 'right' or 'both', got {side!r}.")
+    folder = cache_dir or default_cache_dir()
+    fitted = scene_for(scene)
+    return AnatomyPool(
+        [functools.partial(build_member, seed + k, folder, side, fitted) for k in range(size)],
+        target=target,
+    )

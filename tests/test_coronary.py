@@ -1,0 +1,147 @@
+"""The coronary generator (literature calibres, Finet's law, catheter, bends, stenoses) and the
+``coronary`` domain."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim4endor import suite
+from sim4endor.models import wires
+from sim4endor.tasks import TaskConfigError, coronary
+from sim4endor.vessels.generators.coronary_arteries import (
+    FINET,
+    GUIDE_7F_INNER_DIAMETER,
+    CoronaryArteriesConfig,
+    arteries,
+    coronary_arteries,
+)
+from sim4endor.vessels.meshio import prepare_lumen
+
+LEFT = CoronaryArteriesConfig(side="left")
+RIGHT = CoronaryArteriesConfig(side="right")
+
+
+def branch_radii(anatomy, name: str) -> np.ndarray:
+    graph = anatomy.centerline
+    return graph.radii[np.asarray(graph.branch) == graph.branch_names.index(name)]
+
+
+def test_the_same_seed_gives_the_same_tree_and_another_seed_another() -> None:
+    a, b, c = (coronary_arteries(LEFT, seed) for seed in (3, 3, 4))
+    np.testing.assert_array_equal(a.lumen.vertices, b.lumen.vertices)
+    assert a.lumen.vertices.shape != c.lumen.vertices.shape or not np.array_equal(
+        a.lumen.vertices, c.lumen.vertices)
+
+
+def test_named_arteries_and_distal_targets() -> None:
+    assert sorted(coronary_arteries(LEFT, 0).targets) == ["D1", "D2", "LAD_distal", "LCX_distal",
+                                                          "OM1"]
+    assert sorted(coronary_arteries(RIGHT, 1).targets) == ["AM", "PDA", "PLB"]
+
+
+@pytest.mark.parametrize("config", [LEFT, RIGHT], ids=["left", "right"])
+def test_calibres_follow_the_literature_and_finets_law(config: CoronaryArteriesConfig) -> None:
+    specs = {s.name: s for s in arteries(config.side)}
+    for seed in range(6):
+        tree = coronary_arteries(config, seed)
+        for name, spec in specs.items():
+            radii = branch_radii(tree, name)
+            mean, sd = spec.diameter
+            start = 2e3 * radii[-1 if name == next(iter(specs)) else 0]
+            if name != next(iter(specs)):  # the root starts in the catheter
+                assert max(mean - 2 * sd, 1.5) - 1e-6 <= start <= mean + 2 * sd + 1e-6, name
+            kids = [s.name for s in specs.values() if s.parent == name]
+            if len(kids) == 2:
+                starts = [2e3 * branch_radii(tree, k)[0] for k in kids]
+                law = FINET * sum(starts)
+                # Finet's law, clamped into [largest child, own start] (graph nodes: 0.05 mm).
+                top = start if name != next(iter(specs)) else 2e3 * radii[-1]
+                assert 2e3 * radii[-1] == pytest.approx(min(max(law, max(starts)), top),
+                                                        abs=0.05), name
+
+
+def test_the_wire_starts_in_a_7f_guide_catheter_that_widens_into_the_ostium() -> None:
+    tree = coronary_arteries(LEFT, 0)
+    graph = tree.centerline
+    inlet = graph.labels["inlet"]
+    assert 2 * graph.radii[inlet] == pytest.approx(GUIDE_7F_INNER_DIAMETER)
+    along = graph.geodesic_from(inlet)
+    root = branch_radii(tree, "LM")
+    root_along = along[np.asarray(graph.branch) == graph.branch_names.index("LM")]
+    inside = root[root_along < LEFT.catheter_length]
+    assert np.allclose(inside, LEFT.catheter_radius)
+    assert root[root_along > LEFT.catheter_length + LEFT.ostium_length + 1e-3].min() > 1.5e-3
+
+
+def test_stenoses_narrow_by_the_drawn_severity() -> None:
+    tree = coronary_arteries(CoronaryArteriesConfig(side="left", stenoses=2), 5)
+    assert "stenoses in" in tree.description
+    names = tree.description.split("stenoses in ")[1].split(", ")
+    assert len(names) == 2
+    for name in names:
+        radii = branch_radii(tree, name)
+        smooth = np.linspace(radii[0], radii[-1], len(radii))
+        assert 0.3 - 0.02 <= 1 - (radii / smooth).min() <= 0.7 + 0.02
+
+
+def test_tight_bends_of_90_degrees_and_more() -> None:
+    tree = coronary_arteries(CoronaryArteriesConfig(side="left", tight_bend_probability=1.0,
+                                                    curvature_rms=0.0), 2)
+    graph = tree.centerline
+    worst = 0.0
+    for index in range(len(graph.branch_names)):
+        points = graph.nodes[np.asarray(graph.branch) == index]
+        tangents = np.diff(points, axis=0)
+        tangents /= np.linalg.norm(tangents, axis=1, keepdims=True)
+        # Largest direction change within any 12 mm of axis.
+        window = 24
+        for i in range(max(1, len(tangents) - window)):
+            cos = float(np.clip(tangents[i] @ tangents[min(i + window, len(tangents) - 1)], -1, 1))
+            worst = max(worst, np.degrees(np.arccos(cos)))
+    assert worst >= 90.0
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_every_tree_is_a_valid_lumen(side: str) -> None:
+    for seed in range(8):
+        tree = coronary_arteries(CoronaryArteriesConfig(side=side, stenoses=1), seed)
+        prepare_lumen(tree.lumen, source=f"{side} {seed}", units="m")  # raises if not
+
+
+def test_bad_settings_name_the_field() -> None:
+    from sim4endor.vessels.generators import GeneratorConfigError
+
+    with pytest.raises(GeneratorConfigError, match="side must be"):
+        CoronaryArteriesConfig(side="middle")  # type: ignore[arg-type]
+    with pytest.raises(GeneratorConfigError, match="tight_bend_radius"):
+        CoronaryArteriesConfig(tight_bend_radius=(1.0, 2.0))
+
+
+def test_the_coronary_domain_builds_a_tree_and_steps(tmp_path: Path) -> None:
+    env = suite.load("coronary", "navigate", {"random": 0, "pool_size": 1, "pool_seed": 1,
+                                              "cache_dir": tmp_path})
+    timestep = env.reset()
+    assert env.task.anatomy.vessel.name == "right_coronary_00001"
+    assert env.task.target in ("AM", "PDA", "PLB")
+    for _ in range(5):
+        timestep = env.step([1.0, 0.0])
+        assert np.isfinite(timestep.reward)
+    assert env.task.step_info()["failure"] == ""
+
+
+def test_the_coronary_scene_uses_the_workhorse_wire_narrowed_to_the_smallest_lumen() -> None:
+    scene = coronary.scene_for(None)
+    workhorse = wires.preset("workhorse")
+    assert scene.wire.core_profile == workhorse.core_profile
+    assert scene.driver.max_insertion == coronary.MAX_INSERTION
+    room = 0.85 * (CoronaryArteriesConfig().min_diameter / 2 - workhorse.radius)
+    assert scene.wire.tip_lateral_offset <= room + 1e-9
+
+
+def test_a_target_the_tree_lacks_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(TaskConfigError, match="no target 'D1'"):
+        suite.load("coronary", "navigate", {"pool_size": 1, "pool_seed": 1, "target": "D1",
+                                            "cache_dir": tmp_path})
