@@ -4,6 +4,7 @@ Usage:
     python experiments/figures/vessel_figures.py                    # the shipped phantoms
     python experiments/figures/vessel_figures.py my_vessel --out /tmp/figs
     python experiments/figures/vessel_figures.py --coronary-seeds 0 1 2   # generated, unbuilt
+    python experiments/figures/vessel_figures.py --arteries-seeds 0 1 --stenoses 1
 
 Reads built vessel folders through ``sim4endor.vessels.load`` (names or paths), or generates
 random coronary trees without building them, and writes ``<out>/<name>.png`` (default
@@ -24,8 +25,15 @@ from matplotlib.collections import LineCollection, PolyCollection
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
 from sim4endor import vessels
+from sim4endor.tasks.coronary import side_of
 from sim4endor.vessels.centerline import CenterlineGraph
-from sim4endor.vessels.generators import CoronaryTreeConfig, GeneratedAnatomy, coronary_tree
+from sim4endor.vessels.generators import (
+    CoronaryArteriesConfig,
+    CoronaryTreeConfig,
+    GeneratedAnatomy,
+    coronary_arteries,
+    coronary_tree,
+)
 
 REPO = Path(__file__).resolve().parents[2]
 LUMEN_FILE = "lumen.stl"
@@ -104,16 +112,24 @@ def main() -> None:
                         "shipped phantoms, unless --coronary-seeds is given)")
     parser.add_argument("--coronary-seeds", type=int, nargs="*", default=[],
                         help="also draw generated random coronary trees of these seeds")
+    parser.add_argument("--arteries-seeds", type=int, nargs="*", default=[],
+                        help="also draw generated coronary_arteries trees of these seeds (even "
+                             "seeds left, odd right, as in the coronary domain)")
+    parser.add_argument("--stenoses", type=int, default=0, help="stenoses per arteries tree")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "figures")
     args = parser.parse_args()
     matplotlib.use("Agg")
-    names = args.vessels or ([] if args.coronary_seeds else ["simplified_phantom",
-                                                               "vascular_phantom"])
+    generated = args.coronary_seeds or args.arteries_seeds
+    names = args.vessels or ([] if generated else ["simplified_phantom", "vascular_phantom"])
     for name in names:
         print(draw_vessel(vessels.load(name), args.out))
     for seed in args.coronary_seeds:
         anatomy = coronary_tree(CoronaryTreeConfig(), seed)
         print(draw_generated(f"coronary_tree_seed{seed}", anatomy, args.out))
+    for seed in args.arteries_seeds:
+        config = CoronaryArteriesConfig(side=side_of(seed, "both"), stenoses=args.stenoses)
+        anatomy = coronary_arteries(config, seed)
+        print(draw_generated(f"{config.side}_coronary_seed{seed}", anatomy, args.out))
 
 
 if __name__ == "__main__":

@@ -105,6 +105,13 @@ def read_mesh(path: Path) -> trimesh.Trimesh:
     return loaded
 
 
+def degenerate_faces(mesh: trimesh.Trimesh) -> NDArray[np.bool_]:
+    """Mask of the faces the importer removes: zero height or area relative to the mesh size."""
+    scale = float(mesh.scale)
+    return ~(mesh.nondegenerate_faces(height=1e-10 * scale)
+             & (mesh.area_faces > 1e-12 * scale**2))
+
+
 def boundary_loops(mesh: trimesh.Trimesh) -> list[NDArray[np.int64]]:
     """Returns the closed loops of boundary edges (edges with one face) as vertex index arrays."""
     edges = mesh.edges_sorted
@@ -254,9 +261,7 @@ def prepare_lumen(
     work.merge_vertices(merge_tex=True, merge_norm=True)
     merged = n_vertices - len(work.vertices)
     n_faces = len(work.faces)
-    area_tol = 1e-12 * float(work.scale) ** 2
-    keep = work.nondegenerate_faces(height=1e-10 * float(work.scale)) & (work.area_faces > area_tol)
-    work.update_faces(keep)
+    work.update_faces(~degenerate_faces(work))
     work.update_faces(work.unique_faces())
     work.remove_unreferenced_vertices()
     removed = n_faces - len(work.faces)
