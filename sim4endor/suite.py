@@ -146,7 +146,8 @@ class NavigationEnvironment(control.Environment):
         return timestep
 
 
-def _navigation_config(kwargs: Mapping[str, Any]) -> NavigationConfig:
+def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig
+                       ) -> NavigationConfig:
     reward = kwargs.get("reward", "manifold")
     if isinstance(reward, str):
         reward = RewardConfig(metric=reward)  # type: ignore[arg-type]
@@ -162,8 +163,8 @@ def _navigation_config(kwargs: Mapping[str, Any]) -> NavigationConfig:
     return NavigationConfig(
         action=_config(kwargs.get("action", ActionConfig()), ActionConfig, "action"),
         reward=reward,
-        termination=_config(kwargs.get("termination", TerminationConfig()), TerminationConfig,
-                            "termination"),
+        termination=_config(kwargs.get("termination", termination), TerminationConfig,
+                            "termination", termination),
         initial_state=_config(kwargs.get("initial_state", InitialStateConfig()),
                               InitialStateConfig, "initial_state"),
         observations=DEFAULT_OBSERVATIONS + tuple(o for o in extras if o not in
@@ -172,8 +173,10 @@ def _navigation_config(kwargs: Mapping[str, Any]) -> NavigationConfig:
     )
 
 
-def _config(value: Any, cls: type[_Config], name: str) -> _Config:
-    """A task_kwargs setting as its config dataclass: given as one, or as a mapping of fields."""
+def _config(value: Any, cls: type[_Config], name: str, base: _Config | None = None
+            ) -> _Config:
+    """A task_kwargs setting as its config dataclass: given as one, or as a mapping of fields
+    (changing ``base``, the domain's default, when given)."""
     if isinstance(value, cls):
         return value
     if isinstance(value, Mapping):
@@ -183,7 +186,7 @@ def _config(value: Any, cls: type[_Config], name: str) -> _Config:
             raise TaskConfigError(
                 f"task_kwargs {name}: unknown fields {unknown}; valid: {sorted(fields)}."
             )
-        return cls(**value)
+        return cls(**value) if base is None else dataclasses.replace(base, **value)  # type: ignore[type-var]
     raise TaskConfigError(
         f"task_kwargs {name} must be a {cls.__name__} or a mapping of its fields, got {value!r}."
     )
@@ -309,7 +312,8 @@ def load(
     if unknown:
         raise TaskConfigError(f"Unknown task_kwargs {unknown} for {domain_name}/{task_name}; "
                               f"valid: {list(valid)}.")
-    config = _navigation_config(kwargs)
+    termination = coronary.TERMINATION if entry.domain == "coronary" else TerminationConfig()
+    config = _navigation_config(kwargs, termination)
     seed = _seed(kwargs.get("random"))
     extra_env_kwargs = _environment_kwargs(environment_kwargs or {})
     anatomies = _anatomy_source(entry, kwargs)

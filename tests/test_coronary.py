@@ -145,3 +145,13 @@ def test_a_target_the_tree_lacks_is_refused(tmp_path: Path) -> None:
     with pytest.raises(TaskConfigError, match="no target 'D1'"):
         suite.load("coronary", "navigate", {"pool_size": 1, "pool_seed": 1, "target": "D1",
                                             "cache_dir": tmp_path})
+
+
+def test_the_coronary_tip_force_limit_and_termination_overrides_keep_it(tmp_path: Path) -> None:
+    kwargs = {"pool_size": 1, "pool_seed": 1, "cache_dir": tmp_path}
+    assert suite.load("coronary", "navigate", kwargs).task.config.termination.max_tip_force == 0.6
+    env = suite.load("coronary", "navigate", {**kwargs, "termination": {"time_limit": 30.0}})
+    assert env.task.config.termination.max_tip_force == 0.6
+    assert env.task.config.termination.time_limit == 30.0
+    phantom = suite.load("simplified_phantom", "task_a", {"termination": {"time_limit": 30.0}})
+    assert phantom.task.config.termination.max_tip_force == 1.0  # the paper's

@@ -25,12 +25,18 @@ from sim4endor.models import wires
 from sim4endor.models.scene import SceneConfig, fit_tip
 from sim4endor.tasks import anatomy
 from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, compile_anatomy
-from sim4endor.tasks.config import TaskConfigError
+from sim4endor.tasks.config import TaskConfigError, TerminationConfig
 
 #: Pool members when ``task_kwargs`` does not say.
 DEFAULT_POOL_SIZE = 8
 #: The wire when ``task_kwargs`` does not say.
 DEFAULT_WIRE = "workhorse"
+#: Failure thresholds: the tip-force failure at 0.6 N, below the lowest force published for a
+#: guidewire-like probe puncturing arterial tissue (0.61 N for a 2-week-old occlusion cap, ex
+#: vivo rabbit femoral arteries: Thind, Strauss et al., EuroIntervention; fibrous caps took up
+#: to 1.52 N). No puncture force of a healthy coronary wall was found; its wall is thinner than
+#: a fibrous cap, so the lowest figure is taken. The paper's phantoms keep its 1 N.
+TERMINATION = TerminationConfig(max_tip_force=0.6)
 #: Insertion travel of the driver (m): the deepest target of 80 generated trees (40 left, 40
 #: right, seeds 0-39) lay 152 mm along the centerline from the catheter's proximal end.
 MAX_INSERTION = 0.16
