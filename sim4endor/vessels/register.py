@@ -115,52 +115,28 @@ class RegistrationReport:
     radius_ratio_median: float
 
 
-def _pseudonormals(mesh: trimesh.Trimesh) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Returns outward face, angle-weighted vertex and per-face-edge (F, 3, 3) normals.
-
-    Normals come from the winding of the faces (never from a cache, which a mesh inverted in
-    place may hold stale), turned outward by the sign of the enclosed volume.
-    """
-    faces = np.asarray(mesh.faces)
-    triangles = np.asarray(mesh.vertices)[faces]
-    cross = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
-    if np.einsum("ij,ij->", triangles[:, 0], cross) < 0:  # 6 × signed volume
-        cross = -cross
-    normals = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-30)
-    vertex = np.zeros((len(mesh.vertices), 3))
-    np.add.at(vertex, faces, normals[:, None, :] * np.asarray(mesh.face_angles)[..., None])
-    vertex /= np.maximum(np.linalg.norm(vertex, axis=1, keepdims=True), 1e-30)
-    # Edge k of a face joins its vertices k and k+1 (trimesh's edge order).
-    edge_sum = np.zeros((len(mesh.edges_unique), 3))
-    np.add.at(edge_sum, mesh.edges_unique_inverse, np.repeat(normals, 3, axis=0))
-    edge = edge_sum[np.asarray(mesh.edges_unique_inverse).reshape(-1, 3)]
-    edge /= np.maximum(np.linalg.norm(edge, axis=2, keepdims=True), 1e-30)
-    return normals, vertex, edge
-
-
 def signed_distance(mesh: trimesh.Trimesh, points: FloatArray) -> FloatArray:
     """Returns the exact distance of ``points`` to the closed surface ``mesh``, positive inside.
 
-    The sign comes from the pseudonormal of the closest feature (face, edge or vertex; Bærentzen
-    & Aanæs 2005), which is exact for a closed surface, where trimesh's ray-parity test
-    miscounts on coarse, sharp-edged meshes.
+    libigl's pseudonormal test: the sign comes from the angle-weighted pseudonormal of the
+    closest feature (face, edge or vertex; Bærentzen & Aanæs 2005), which is exact for a closed
+    surface, where trimesh's ray-parity test miscounts on coarse, sharp-edged meshes. The faces
+    are turned outward first (by the sign of the enclosed volume), so the winding of ``mesh``
+    does not matter.
     """
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    closest, distance, face = trimesh.proximity.closest_point(mesh, points)
-    bary = trimesh.triangles.points_to_barycentric(mesh.triangles[face], closest)
-    face_n, vertex_n, edge_n = _pseudonormals(mesh)
-    normal = face_n[face]
-    tol = 1e-7
-    zero = bary < tol
-    on_edge = zero.sum(axis=1) == 1
-    # The edge opposite vertex k is face edge (k + 1) % 3.
-    k = np.argmax(zero, axis=1)
-    normal[on_edge] = edge_n[face[on_edge], (k[on_edge] + 1) % 3]
-    on_vertex = zero.sum(axis=1) >= 2
-    corner = np.argmax(bary, axis=1)
-    normal[on_vertex] = vertex_n[np.asarray(mesh.faces)[face[on_vertex], corner[on_vertex]]]
-    outward = np.einsum("ij,ij->i", points - closest, normal)
-    return np.where(outward > 0, -distance, distance)
+    import igl  # libigl: imported here, as only building a vessel needs it
+
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    triangles = vertices[faces]
+    cross = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    if np.einsum("ij,ij->", triangles[:, 0], cross) < 0:  # 6 × signed volume: wound inward
+        faces = faces[:, ::-1]
+    distance = igl.signed_distance(
+        points, vertices, np.ascontiguousarray(faces), igl.SIGNED_DISTANCE_TYPE_PSEUDONORMAL
+    )[0]
+    return -np.asarray(distance, dtype=np.float64)  # libigl counts outside as positive
 
 
 def _frames(graph: CenterlineGraph) -> tuple[FloatArray, NDArray[np.bool_]]:
