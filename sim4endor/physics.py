@@ -186,6 +186,15 @@ class GuidewirePhysics(dm_mujoco.Physics):
         cumulative = np.concatenate(([0.0], np.cumsum(data.efc_force)))
         return cumulative[address + rows] - cumulative[address], bodies
 
+    def wall_contact_distances(self) -> FloatArray:
+        """Signed distance (m) of every wire–vessel-wall contact now detected (sheath
+        excluded): MuJoCo's ``contact.dist`` between the wire capsule and the collision hull
+        itself, negative when they overlap (a penetration)."""
+        contacts = self.data.ptr.contact
+        geom_class = self._indices().geom_class
+        hits = geom_class[contacts.geom1] * geom_class[contacts.geom2] == 2
+        return contacts.dist[hits].copy()
+
     def wall_contact_force(self) -> float:
         """Total normal force of all wire–vessel-wall contacts (N)."""
         indices = self._indices()
