@@ -261,6 +261,11 @@ class GuidewirePhysics(dm_mujoco.Physics):
         # reset_context (whose forward pass only runs when the block exits).
         mujoco.mj_kinematics(self.model.ptr, self.data.ptr)
 
+    def insertion_force(self) -> float:
+        """Force (N) the insertion servo applies to the carriage now; positive pushes the wire
+        in. It is clipped to the driver's ``insertion_force_limit``."""
+        return float(self.data.ptr.actuator_force[self._indices().actuators[0]])
+
     def max_speeds(self) -> tuple[float, float]:
         """The driver's speed limits (m/s, rad/s)."""
         numeric = self.named.model.numeric_data

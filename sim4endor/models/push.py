@@ -34,11 +34,13 @@ class PushResult:
     max_penetration: float
     wire_radius: float
     max_wall_force: float
+    max_push: float
     max_escape: float
     left_lumen: bool
     finite: bool
     warnings: tuple[str, ...]
     sim_time: float
+    stopped: bool = False
 
     @property
     def penetration_over_radius(self) -> float:
@@ -48,10 +50,13 @@ class PushResult:
 
 def push_physics(
     vessel: Vessel, wire: GuidewireConfig, force_limit: float, timestep: float | None = None,
+    travel: float = 0.04,
 ) -> GuidewirePhysics:
     """The scene of ``vessel`` fitted by ``config_for_vessel``, with the driver's insertion
-    force limit set to ``force_limit`` (N)."""
-    config = config_for_vessel(vessel, SceneConfig(wire=wire, timestep=timestep))
+    force limit set to ``force_limit`` (N) and ``travel`` (m) of insertion beyond the deepest
+    target, so that a soft wire buckling in the dead end cannot take up all the driver's
+    travel before the servo pushes at its limit."""
+    config = config_for_vessel(vessel, SceneConfig(wire=wire, timestep=timestep), margin=travel)
     driver = dataclasses.replace(config.driver, insertion_force_limit=force_limit)
     return GuidewirePhysics.from_vessel(vessel, dataclasses.replace(config, driver=driver))
 
@@ -59,7 +64,7 @@ def push_physics(
 def push_test(
     vessel: Vessel, wire: GuidewireConfig, force_limit: float = 0.5, rotation: float = 0.0,
     duration: float = 6.0, control_period: float = 0.05, escape_tolerance: float | None = None,
-    timestep: float | None = None,
+    timestep: float | None = None, stop_push_force: float | None = None,
 ) -> PushResult:
     """Rolls the driver to ``rotation`` (rad), then inserts at full speed for ``duration`` s.
 
@@ -67,6 +72,8 @@ def push_test(
     end, so the wire ends up pushed at ``force_limit``. ``escape_tolerance`` (default: the
     wire radius) is how far the wire axis may lie outside the nominal lumen (whose hulls sit
     up to a few tenths of a millimetre off it) before the wire counts as having left it.
+    With ``stop_push_force`` the run ends (``stopped``) after the first control step whose
+    driver push exceeds it: the navigation task's ``push_force`` failure, checked the same way.
     """
     from sim4endor.models.validation import escape_depth
 
@@ -74,9 +81,9 @@ def push_test(
     tolerance = wire.radius if escape_tolerance is None else escape_tolerance
     substeps = max(1, round(control_period / physics.model.opt.timestep))
     v_ins = physics.max_speeds()[0]
-    penetration = force = escape = 0.0
-    finite = True
-    while physics.data.time < duration:
+    penetration = force = escape = push = 0.0
+    finite, stopped, time = True, False, 0.0
+    while physics.data.time < duration and not stopped:
         angle = physics.driver_targets()[1]
         if abs(angle - rotation) > 1e-9:
             physics.apply_increments(0.0, rotation - angle, control_period)
@@ -92,13 +99,16 @@ def push_test(
             if distances.size:
                 penetration = max(penetration, -float(distances.min()))
             force = max(force, physics.wall_contact_force())
+            time = float(physics.data.time)  # MuJoCo resets the time of a diverged state
         if not finite or not physics.is_finite():
             finite = False
             break
         escape = max(escape, escape_depth(physics, vessel))
+        push = max(push, physics.insertion_force())
+        stopped = stop_push_force is not None and physics.insertion_force() > stop_push_force
     return PushResult(
         force_limit=force_limit, max_penetration=penetration, wire_radius=wire.radius,
-        max_wall_force=force if finite else math.inf, max_escape=escape,
+        max_wall_force=force if finite else math.inf, max_push=push, max_escape=escape,
         left_lumen=escape > tolerance or not finite, finite=finite,
-        warnings=tuple(physics.warnings()), sim_time=float(physics.data.time),
+        warnings=tuple(physics.warnings()), sim_time=time, stopped=stopped,
     )
