@@ -20,6 +20,7 @@ Definitions (the benchmark's ``torque_lag_deg`` and ``whip``):
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -76,7 +77,7 @@ def add_tube(
     so the rings overlap on the outside of a bend.
     """
     half_width = (radius + thickness) * math.tan(math.pi / sectors)
-    for index, (start, end) in enumerate(zip(path[:-1], path[1:], strict=True)):
+    for index, (start, end) in enumerate(itertools.pairwise(path)):
         axis = (end - start) / np.linalg.norm(end - start)
         normal = np.cross([0.0, 0.0, 1.0], axis)
         normal /= np.linalg.norm(normal)
