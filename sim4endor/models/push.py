@@ -7,15 +7,16 @@ the servo saturates once its target leads the carriage by limit / stiffness). It
 * penetration: the deepest overlap of a wire capsule with a wall hull, from MuJoCo's own
   contact distance (``contact.dist`` < 0; :meth:`GuidewirePhysics.wall_contact_distances`),
   so it is measured against the collision geometry, not the nominal lumen;
-* the largest total wall force, whether any wire point (its axis) left the nominal lumen by
-  more than ``escape_tolerance`` (:func:`sim4endor.models.validation.escape_depth`), and
+* the largest total wall force (N, read every physics step; on a blow-up, up to the step
+  that diverged), whether any wire point (its axis) left the nominal lumen by more than
+  ``escape_tolerance`` (:func:`sim4endor.models.validation.escape_depth`; a non-finite state
+  counts as having left, since MuJoCo resets it and the wire can no longer be located), and
   whether the state became non-finite or MuJoCo warned.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 from dm_control.rl import control
@@ -108,7 +109,7 @@ def push_test(
         stopped = stop_push_force is not None and physics.insertion_force() > stop_push_force
     return PushResult(
         force_limit=force_limit, max_penetration=penetration, wire_radius=wire.radius,
-        max_wall_force=force if finite else math.inf, max_push=push, max_escape=escape,
+        max_wall_force=force, max_push=push, max_escape=escape,
         left_lumen=escape > tolerance or not finite, finite=finite,
         warnings=tuple(physics.warnings()), sim_time=time, stopped=stopped,
     )
