@@ -31,8 +31,9 @@ def test_test_lumen_is_an_s_of_two_right_angles() -> None:
 
 
 def test_stiffer_core_turns_the_tip_with_less_whip() -> None:
-    # Measured (90°/s): whip 1.89 workhorse, 1.32 stiff; lag at the end of the turn 10.0° and
-    # 12.7°, so the stiffer core does *not* lag less here (see docs/guidewire.md).
+    # Measured (90°/s): whip 3.39 workhorse, 1.35 stiff; lag at the end of the turn 10.6° and
+    # 12.7°, so the stiffer core does *not* lag less here (see docs/guidewire.md). Both are
+    # dynamic figures of the model at its default damping and armature.
     soft = torque.roll_test(wires.preset("workhorse"))
     stiff = torque.roll_test(wires.preset("stiff"))
     for result in (soft, stiff):
