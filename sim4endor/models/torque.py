@@ -131,7 +131,8 @@ def roll_test(
     """Inserts ``wire`` through both bends, then turns the driver 360° at ``speed`` rad/s.
 
     See the module docstring for the definitions. The bend direction's reference chord runs
-    from 2 to 4 mm behind the pre-bent tip, so it measures the tip, not the shaft's curve.
+    between b and 2b from the wire's end, b = tip length + 2 mm, so it measures the pre-bent
+    tip against the shaft just behind it, not the shaft's curve further back.
     """
     from sim4endor.models.validation import drive_to, tip_bend_direction
 
