@@ -49,19 +49,14 @@ def test_tip_roll_lags_more_at_a_faster_turn() -> None:
     assert 0.0 < slow.lag_deg < fast.lag_deg
 
 
-def test_workhorse_pushed_at_the_limit_penetrates_the_hulls_less_than_a_quarter_radius() -> None:
-    # The workhorse is the worst preset (0.21 wire radii; without the 0.1 mm margin 0.66).
-    result = push.push_test(vessels.load("simplified_phantom"), wires.preset("workhorse"), 0.5)
+@pytest.mark.parametrize("name", ["paper", "workhorse", "intermediate", "stiff"])
+def test_pushed_at_the_limit_the_wire_penetrates_the_hulls_less_than_a_quarter_radius(
+    name: str,
+) -> None:
+    # Measured 0.04 / 0.21 / 0.00 / 0.01 wire radii; without the 0.1 mm margin 0.59-0.73.
+    result = push.push_test(vessels.load("simplified_phantom"), wires.preset(name), 0.5)
     assert result.finite and not result.warnings and not result.left_lumen
     assert result.max_push == pytest.approx(0.5, rel=1e-6)  # the servo did push at its limit
-    assert result.penetration_over_radius <= 0.25
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("name", ["paper", "intermediate", "stiff"])
-def test_every_preset_pushed_at_the_limit_stays_within_a_quarter_radius(name: str) -> None:
-    result = push.push_test(vessels.load("simplified_phantom"), wires.preset(name), 0.5)
-    assert result.finite and not result.left_lumen and result.max_push == pytest.approx(0.5)
     assert result.penetration_over_radius <= 0.25
 
 
