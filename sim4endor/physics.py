@@ -186,6 +186,15 @@ class GuidewirePhysics(dm_mujoco.Physics):
         cumulative = np.concatenate(([0.0], np.cumsum(data.efc_force)))
         return cumulative[address + rows] - cumulative[address], bodies
 
+    def wall_contact_distances(self) -> FloatArray:
+        """Signed distance (m) of every wire–vessel-wall contact now detected (sheath
+        excluded): MuJoCo's ``contact.dist`` between the wire capsule and the collision hull
+        itself, negative when they overlap (a penetration)."""
+        contacts = self.data.ptr.contact
+        geom_class = self._indices().geom_class
+        hits = geom_class[contacts.geom1] * geom_class[contacts.geom2] == 2
+        return contacts.dist[hits].copy()
+
     def wall_contact_force(self) -> float:
         """Total normal force of all wire–vessel-wall contacts (N)."""
         indices = self._indices()
@@ -251,6 +260,11 @@ class GuidewirePhysics(dm_mujoco.Physics):
         # Body and site positions follow at once, so the tip can be read inside dm_control's
         # reset_context (whose forward pass only runs when the block exits).
         mujoco.mj_kinematics(self.model.ptr, self.data.ptr)
+
+    def insertion_force(self) -> float:
+        """Force (N) the insertion servo applies to the carriage now; positive pushes the wire
+        in. It is clipped to the driver's ``insertion_force_limit``."""
+        return float(self.data.ptr.actuator_force[self._indices().actuators[0]])
 
     def max_speeds(self) -> tuple[float, float]:
         """The driver's speed limits (m/s, rad/s)."""

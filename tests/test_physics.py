@@ -92,12 +92,18 @@ def test_pushing_into_the_capped_end_gives_wall_force_and_no_escape(tube: Vessel
 
 
 def test_legacy_stepping_reports_the_same_contact_force(tube: Vessel) -> None:
+    # The pushed tip chatters on the cap (the total force swings between ~0 and ~1.3 N from
+    # one 5 ms step to the next in both modes), so compare the mean over 0.5 s.
     forces = []
     for legacy in (False, True):
         physics = GuidewirePhysics.from_vessel(tube)
         physics.legacy_step = legacy
         _drive(physics, 0.07, 0.0, 3.0)
-        forces.append(physics.wall_contact_force())
+        samples = []
+        for _ in range(100):
+            physics.step()
+            samples.append(physics.wall_contact_force())
+        forces.append(float(np.mean(samples)))
     assert forces[0] > 0.0
     assert forces[1] == pytest.approx(forces[0], rel=0.2)
 
@@ -133,8 +139,12 @@ def test_vectorised_wall_forces_match_mujoco_contact_force(tube: Vessel) -> None
 def test_contact_sensors_match_the_contact_list(tube: Vessel) -> None:
     physics = GuidewirePhysics.from_vessel(tube)
     _drive(physics, 0.07, 0.3, 3.0)
-    forces, bodies = physics._wall_contacts()
-    tip = forces[bodies >= physics._indices().first_tip_body].sum()
+    for _ in range(200):  # the pushed tip chatters on the cap: find a step where it presses
+        forces, bodies = physics._wall_contacts()
+        tip = forces[bodies >= physics._indices().first_tip_body].sum()
+        if tip > 0.0:
+            break
+        physics.step()
     assert len(forces) > 0 and tip > 0.0
     assert physics.wall_contact_force() == pytest.approx(forces.sum(), rel=1e-12)
     assert physics.tip_contact_force() == pytest.approx(tip, rel=1e-12)

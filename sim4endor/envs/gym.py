@@ -74,7 +74,8 @@ class NavigationEnv(gymnasium.Env[Any, np.ndarray]):
     D is the manifold (geodesic) distance along the centerline graph, or Euclidean with
     ``task_kwargs={"reward": "euclidean"}``. Failure states (``info["failure"]``):
     ``tip_force`` (tip section on the wall > 1 N), ``outside_lumen`` (tip > 0.5 mm outside),
-    ``insertion_limit``, ``rotation_limit``, ``instability``. ``info`` also holds ``distance`` and
+    ``insertion_limit``, ``rotation_limit``, ``instability``, ``push_force`` (driver push
+    > 1 N). ``info`` also holds ``distance`` and
     ``manifold_distance`` (m), ``wall_force`` and ``tip_force`` (N), ``lumen_excess`` (m),
     ``is_success`` and ``failure_code`` (0, or the failure's 1-based index in
     ``sim4endor.tasks.FAILURES``).

@@ -8,6 +8,8 @@
   (for torque transmission: rotate the base, compare the tip's rotation).
 * :func:`escape_depth` — how far any wire point is outside the lumen (distance from the
   centerline graph minus the local radius, positive part).
+* :func:`inertia_factors` — the armature added to each joint against the real segment's
+  inertia (the mass scaling multiplies it by ``mass_scale`` besides).
 * :func:`steer` — the scripted rotate-then-insert policy towards a target; success is a
   manifold distance (tip projected on the centerline graph, distance along the graph, as the
   paper's reward) of at most ``tolerance``.
@@ -249,4 +251,41 @@ def steer(
         success=healthy and distance <= tolerance, final_distance=distance,
         sim_time=float(physics.data.time), wall_time=wall, cpu_time=cpu,
         max_escape=worst, healthy=healthy,
+    )
+
+
+@dataclass(frozen=True)
+class InertiaFactors:
+    """How much inertia the quasi-static settings add to a wire (ratios to the real wire).
+
+    Attributes:
+        mass_scale: The factor on every segment's mass and inertia (``GuidewireConfig``).
+        bending: (smallest, largest) over the ball joints of armature / the physical moment of
+            inertia of the joint's segment about the joint, for bending (about an axis across
+            the segment through the joint).
+        twist: The same for twisting (about the segment's own axis, ``m r² / 2``).
+    """
+
+    mass_scale: float
+    bending: tuple[float, float]
+    twist: tuple[float, float]
+
+
+def inertia_factors(wire: GuidewireConfig) -> InertiaFactors:
+    """Reads the compiled wire: each joint's armature (``stiffness × armature_time²``) against
+    its segment's real (unscaled) inertia about the joint, for bending and for twist."""
+    physics = GuidewirePhysics.from_vessel(None, SceneConfig(wire=wire))
+    model = physics.model.ptr
+    bending, twist = [], []
+    for body in physics._indices().wire_bodies[1:]:
+        dof = int(model.jnt_dofadr[model.body_jntadr[body]])
+        armature = float(model.dof_armature[dof])
+        mass = float(model.body_mass[body]) / wire.mass_scale
+        # Principal moments about the COM: the thin capsule's smallest is about its axis.
+        inertia = model.body_inertia[body] / wire.mass_scale
+        offset = float(np.linalg.norm(model.body_ipos[body]))  # joint at the body origin
+        bending.append(armature / (float(np.max(inertia)) + mass * offset**2))
+        twist.append(armature / float(np.min(inertia)))
+    return InertiaFactors(
+        wire.mass_scale, (min(bending), max(bending)), (min(twist), max(twist))
     )

@@ -85,7 +85,13 @@ class TerminationConfig:
       stop of the carriage, not a failure;
     * ``rotation_limit``: the commanded rotation beyond ±``max_rotation`` (rad; default: the
       driver's rotation range);
-    * ``instability``: a non-finite state or a MuJoCo warning during the step.
+    * ``instability``: a non-finite state or a MuJoCo warning during the step;
+    * ``push_force``: the driver pushing the wire in harder than ``max_push_force`` (N), the
+      largest push the model is validated to hold. The default driver's force limit is 0.5 N,
+      so this ends an episode only on a driver configured to push harder. Measured
+      (``guidewire_validation.py``, key ``push_robustness``): pushed into a dead end without
+      this check, a 5 N driver blew the simulation up (NaN) and a 2 N one pressed the wall
+      with tens of newtons; with it, the episode ends with this failure first.
 
     Attributes:
         time_limit: Simulated seconds per episode (truncation, discount 1).
@@ -95,6 +101,7 @@ class TerminationConfig:
             uses the driver's insertion range.
         max_rotation: Largest |commanded rotation| (rad) before the episode fails; ``None``
             uses the driver's rotation range.
+        max_push_force: Largest insertion force of the driver (N) before the episode fails.
     """
 
     time_limit: float = 20.0
@@ -102,11 +109,12 @@ class TerminationConfig:
     lumen_margin: float = 0.5e-3
     max_insertion: float | None = None
     max_rotation: float | None = None
+    max_push_force: float = 1.0
 
     def __post_init__(self) -> None:
         require(self, "TerminationConfig", TaskConfigError,
                 positive=("time_limit", "max_tip_force", "lumen_margin", "max_insertion",
-                          "max_rotation"))
+                          "max_rotation", "max_push_force"))
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,7 @@ FAILURES: tuple[str, ...] = (
     "outside_lumen",
     "insertion_limit",
     "rotation_limit",
+    "push_force",
 )
 
 
@@ -248,7 +249,7 @@ class NavigationTask(base.Task):
         # and dm_control turns the warning into the PhysicsError that calls mark_unstable.
         if unstable:
             distance = manifold = self._d_last
-            force, tip_force, excess = math.inf, math.inf, math.inf
+            force, tip_force, excess, push = math.inf, math.inf, math.inf, math.inf
         else:
             tip = physics.tip_position()
             to_target = self.manifold_distance()
@@ -262,12 +263,14 @@ class NavigationTask(base.Task):
             force = physics.wall_contact_force()
             tip_force = physics.tip_contact_force()
             excess = lumen_excess(self._anatomy, tip, proj)
+            push = physics.insertion_force()
         checks = {
             "instability": unstable,
             "tip_force": tip_force > term.max_tip_force,
             "outside_lumen": excess > term.lumen_margin,
             "insertion_limit": self._insertion > self._max_insertion,
             "rotation_limit": abs(self._rotation) > self._max_rotation,
+            "push_force": push > term.max_push_force,
         }
         failure = next((name for name in FAILURES if checks[name]), "")
         success = not failure and distance <= self.config.reward.success_distance

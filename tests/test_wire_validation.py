@@ -1,0 +1,117 @@
+"""Issue 15's validation of the wire presets: torque through bends, hull penetration under the
+driver's push, what a stronger driver does, and independence from the inertia settings."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from sim4endor import vessels
+from sim4endor.models import push, torque, validation, wires
+from sim4endor.models.driver import DriverConfig
+from sim4endor.models.guidewire import GuidewireConfig
+from sim4endor.models.scene import SceneConfig
+from sim4endor.suite import NavigationEnvironment, physics_for
+from sim4endor.tasks.anatomy import FixedAnatomy, compile_anatomy
+from sim4endor.tasks.config import InitialStateConfig, NavigationConfig, TerminationConfig
+from sim4endor.tasks.navigation import NavigationTask
+
+
+def test_test_lumen_is_an_s_of_two_right_angles() -> None:
+    path = torque.s_path()
+    headings = np.diff(path, axis=0)
+    headings /= np.linalg.norm(headings, axis=1)[:, None]
+    np.testing.assert_allclose(headings[0], [1, 0, 0], atol=1e-9)
+    np.testing.assert_allclose(headings[len(headings) // 3], [0, 1, 0], atol=0.2)
+    np.testing.assert_allclose(headings[-1], [1, 0, 0], atol=1e-9)
+    assert np.all(np.linalg.norm(np.diff(path, axis=0), axis=1) <= 0.003 + 1e-9)
+
+
+def test_stiffer_core_turns_the_tip_with_less_whip() -> None:
+    # Measured (90°/s): whip 3.39 workhorse, 1.35 stiff; lag at the end of the turn 10.6° and
+    # 12.7°, so the stiffer core does *not* lag less here (see docs/guidewire.md). Both are
+    # dynamic figures of the model at its default damping and armature.
+    soft = torque.roll_test(wires.preset("workhorse"))
+    stiff = torque.roll_test(wires.preset("stiff"))
+    for result in (soft, stiff):
+        assert result.healthy and result.tip_in_last_straight
+        assert abs(result.residual_deg) < 10.0  # the tip follows once the driver stops
+    assert stiff.whip < 0.85 * soft.whip
+    assert stiff.max_jump_deg < soft.max_jump_deg
+
+
+def test_tip_roll_lags_more_at_a_faster_turn() -> None:
+    slow = torque.roll_test(wires.preset("workhorse"), speed=math.pi / 2, hold=0.5)
+    fast = torque.roll_test(wires.preset("workhorse"), speed=math.pi, hold=0.5)
+    assert 0.0 < slow.lag_deg < fast.lag_deg
+
+
+@pytest.mark.parametrize("name", ["paper", "workhorse", "intermediate", "stiff"])
+def test_pushed_at_the_limit_the_wire_penetrates_the_hulls_less_than_a_quarter_radius(
+    name: str,
+) -> None:
+    # Measured 0.04 / 0.21 / 0.00 / 0.01 wire radii; without the 0.1 mm margin 0.59-0.73.
+    result = push.push_test(vessels.load("simplified_phantom"), wires.preset(name), 0.5)
+    assert result.finite and not result.warnings and not result.left_lumen
+    assert result.max_push == pytest.approx(0.5, rel=1e-6)  # the servo did push at its limit
+    assert result.penetration_over_radius <= 0.25
+
+
+def test_a_stronger_driver_ends_the_episode_with_push_force() -> None:
+    # Task B's target is in the other branch: at roll 0 the wire runs into branch A's dead end.
+    scene = SceneConfig(driver=DriverConfig(insertion_force_limit=5.0))
+    anatomy = compile_anatomy("simplified_phantom", scene)
+    config = NavigationConfig(termination=TerminationConfig(max_tip_force=100.0),
+                              initial_state=InitialStateConfig(0.0, 0.0))
+    task = NavigationTask(FixedAnatomy(anatomy, "B"), config, random=0)
+    env = NavigationEnvironment(physics_for(anatomy), task, time_limit=10.0,
+                                control_timestep=0.05, legacy_step=False)
+    env.reset()
+    pushes = []
+    for _ in range(200):
+        last = env.step([1.0, 0.0])
+        pushes.append(env.physics.insertion_force())
+        if last.last():
+            break
+    info = task.step_info()
+    assert info["failure"] == "push_force", info
+    assert env.physics.is_finite() and not env.physics.warnings()
+    assert 1.0 < pushes[-1] < 2.0  # caught within a control step of crossing 1 N
+
+
+def test_inertia_factors_match_the_joint_formula() -> None:
+    wire = wires.preset("paper")
+    factors = validation.inertia_factors(wire)
+    # Shaft joint by hand: armature E·I/l·T² against a 5 mm segment's m l²/3 (+ m r²/4).
+    length, r = wire.max_segment_length, wire.radius
+    mass = wire.density * math.pi * r**2 * length
+    armature = wire.bending_stiffness / length * wire.armature_time**2
+    shaft = armature / (mass * (length**2 / 3 + r**2 / 4))
+    assert factors.bending[0] <= shaft * 1.05 and shaft <= factors.bending[1]
+    assert 1e3 < factors.bending[0] < factors.bending[1] < 1e9
+    assert factors.mass_scale == 1e4
+
+
+def _tip_after_insertion(wire: GuidewireConfig, timestep: float | None) -> np.ndarray:
+    physics = torque.bent_tube_physics(wire, timestep)
+    validation.drive_to(physics, torque.INSERTION, 0.0, settle=1.0)
+    assert physics.is_finite() and not physics.warnings()
+    return physics.tip_position()
+
+
+@pytest.mark.parametrize("name", ["workhorse", "stiff"])
+def test_quasi_static_insertion_does_not_depend_on_mass_or_armature(name: str) -> None:
+    # Through both bends of the S; measured differences <= 0.06 mm (armature) and 0.46 mm
+    # (mass 1e4 vs 1e2, both at dt 1 ms) in a 2 mm-radius lumen. Mass 1e3 at dt 5 ms lets the
+    # stiff wire tunnel out of the tube, which is why the default scaling is 1e4.
+    wire = wires.preset(name)
+    default = _tip_after_insertion(wire, None)
+    armature = _tip_after_insertion(dataclasses.replace(wire, armature_time=0.03), None)
+    assert np.linalg.norm(armature - default) < 2e-4
+    heavy = _tip_after_insertion(wire, 0.001)
+    light = _tip_after_insertion(dataclasses.replace(wire, mass_scale=1e2), 0.001)
+    assert np.linalg.norm(light - heavy) < 7.5e-4
+    assert np.linalg.norm(heavy - default) < 2e-4
