@@ -146,7 +146,9 @@ class NavigationEnvironment(control.Environment):
         return timestep
 
 
-def _navigation_config(kwargs: Mapping[str, Any]) -> NavigationConfig:
+def _navigation_config(kwargs: Mapping[str, Any],
+                       termination: TerminationConfig | None = None) -> NavigationConfig:
+    """The task config of ``kwargs``; ``termination`` is the domain's default, if it has one."""
     reward = kwargs.get("reward", "manifold")
     if isinstance(reward, str):
         reward = RewardConfig(metric=reward)  # type: ignore[arg-type]
@@ -162,8 +164,8 @@ def _navigation_config(kwargs: Mapping[str, Any]) -> NavigationConfig:
     return NavigationConfig(
         action=_config(kwargs.get("action", ActionConfig()), ActionConfig, "action"),
         reward=reward,
-        termination=_config(kwargs.get("termination", TerminationConfig()), TerminationConfig,
-                            "termination"),
+        termination=_config(kwargs.get("termination", termination or TerminationConfig()),
+                            TerminationConfig, "termination"),
         initial_state=_config(kwargs.get("initial_state", InitialStateConfig()),
                               InitialStateConfig, "initial_state"),
         observations=DEFAULT_OBSERVATIONS + tuple(o for o in extras if o not in
@@ -309,7 +311,9 @@ def load(
     if unknown:
         raise TaskConfigError(f"Unknown task_kwargs {unknown} for {domain_name}/{task_name}; "
                               f"valid: {list(valid)}.")
-    config = _navigation_config(kwargs)
+    config = _navigation_config(
+        kwargs, coronary.TERMINATION if entry.domain == "coronary" else None
+    )
     seed = _seed(kwargs.get("random"))
     extra_env_kwargs = _environment_kwargs(environment_kwargs or {})
     anatomies = _anatomy_source(entry, kwargs)

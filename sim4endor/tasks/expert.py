@@ -54,6 +54,10 @@ class ExpertConfig:
         lost: A manifold distance this much (m) above the best of the episode means the tip
             took a wrong branch.
         back_off_steps: Control steps of full retraction after a wrong branch.
+        stall: A carriage lagging its commanded insertion by this much (m) pushes at the
+            driver's force limit: the wire is blocked (buckled, or caught on the wall), and
+            pushing on only winds up the command until the insertion limit ends the episode;
+            the expert pulls back (``back_push``) instead, as a hand feels the resistance.
         tip_length: Arc length of the wire's pre-bent tip (m); the body axis is measured just
             proximal of it. ``None`` (default): the tip of the wire in the physics, whatever
             its preset (a 2 mm workhorse tip measured as a 5 mm one mixes the tip's bend into
@@ -70,6 +74,7 @@ class ExpertConfig:
     back_push: float = -0.5
     lost: float = 0.004
     back_off_steps: int = 8
+    stall: float = 0.002
     tip_length: float | None = None
 
 
@@ -82,8 +87,7 @@ class CenterlineExpert:
     def __init__(self, config: ExpertConfig | None = None) -> None:
         self.config = config or ExpertConfig()
         self._neighbours: dict[str, list[list[int]]] = {}  # per anatomy
-        self._best = math.inf
-        self._backing_off = 0
+        self.reset()
 
     def reset(self) -> None:
         """Forgets the episode (best distance, retraction under way)."""
@@ -125,7 +129,8 @@ class CenterlineExpert:
             phi = math.atan2(float(body @ np.cross(bend, turn)), float(bend @ turn))
             rotate = float(np.clip(phi / task.config.action.max_rotation_step, -1.0, 1.0))
             aligned = abs(math.degrees(phi)) < cfg.tolerance_deg
-        if force > cfg.back_force:
+        stalled = physics.driver_targets()[0] - physics.insertion_depth() > cfg.stall
+        if force > cfg.back_force or stalled:
             insert = cfg.back_push
         elif not aligned:
             insert = 0.0
