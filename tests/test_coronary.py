@@ -127,6 +127,9 @@ def test_the_coronary_domain_builds_a_tree_and_steps(tmp_path: Path) -> None:
     timestep = env.reset()
     assert env.task.anatomy.vessel.name == "right_coronary_00001"
     assert env.task.target in ("AM", "PDA", "PLB")
+    # The domain's own episode limit (40 s: 152 mm paths through up to four bifurcations).
+    assert env.task.config.termination == coronary.TERMINATION
+    assert env._step_limit == pytest.approx(coronary.TERMINATION.time_limit / 0.05)
     for _ in range(5):
         timestep = env.step([1.0, 0.0])
         assert np.isfinite(timestep.reward)

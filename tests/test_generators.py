@@ -295,7 +295,8 @@ def test_generated_anatomies_honour_the_contract(fixture, request) -> None:
 
 
 def test_registry_names_every_generator() -> None:
-    assert set(GENERATORS) == {"simplified_phantom", "vascular_phantom", "coronary_tree"}
+    assert set(GENERATORS) == {"simplified_phantom", "vascular_phantom", "coronary_tree",
+                               "coronary_arteries"}
     assert GENERATORS["coronary_tree"].generate is coronary_tree
     assert GENERATORS["vascular_phantom"].config_type is VascularPhantomConfig
 
