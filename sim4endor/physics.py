@@ -145,6 +145,11 @@ class GuidewirePhysics(dm_mujoco.Physics):
         """Wire centreline vertices, proximal first, tip last (m), shape (N+1, 3)."""
         return np.vstack([self.data.xpos[self._indices().wire_bodies], self.tip_position()[None]])
 
+    def tip_start_index(self) -> int:
+        """Index in :meth:`wire_points` of the vertex where the pre-bent tip starts."""
+        indices = self._indices()
+        return indices.first_tip_body - int(indices.wire_bodies[0])
+
     def insertion_depth(self) -> float:
         """Carriage insertion (m) from its start; the tip has advanced about as much."""
         return float(self.data.qpos[self._indices().joint_qpos[0]])

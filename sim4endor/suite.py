@@ -148,6 +148,7 @@ class NavigationEnvironment(control.Environment):
 
 def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig
                        ) -> NavigationConfig:
+    """The task config of ``kwargs``; ``termination`` is the domain's default."""
     reward = kwargs.get("reward", "manifold")
     if isinstance(reward, str):
         reward = RewardConfig(metric=reward)  # type: ignore[arg-type]

@@ -78,6 +78,30 @@ def test_projection_matches_brute_force_over_edges() -> None:
         assert g.radius_at_projection(proj) == pytest.approx(1.5e-3)
 
 
+def test_tube_excess_is_the_union_of_tubes_near_a_small_side_branch() -> None:
+    """A point inside a wide trunk but nearer to a thin side branch's axis is inside."""
+    trunk = [[x, 0.0, 0.0] for x in np.arange(0.0, 0.0201, 1e-3)]
+    step = 1e-3 / np.sqrt(2.0)  # the side branch leaves at 45 degrees from x = 10 mm
+    side = [[0.010 + k * step, k * step, 0.0] for k in range(1, 11)]
+    nodes = np.array(trunk + side)
+    edges = [(i, i + 1) for i in range(len(trunk) - 1)] + [(10, len(trunk))]
+    edges += [(len(trunk) + k, len(trunk) + k + 1) for k in range(9)]
+    radii = np.r_[np.full(len(trunk), 2.5e-3), np.full(10, 0.6e-3)]
+    g = CenterlineGraph(nodes=nodes, radii=radii, edges=np.array(edges))
+    point = np.array([0.0135, 0.0022, 0.0])  # 2.2 mm off the trunk's axis, 0.92 off the side's
+    proj = g.project(point)
+    assert proj.distance - g.radius_at_projection(proj) > 0  # the nearest tube alone: outside
+    assert g.tube_excess(point) == pytest.approx(2.2e-3 - 2.5e-3)
+    for x in np.random.default_rng(1).uniform(-0.005, 0.025, size=(40, 3)):
+        brute = min(float(np.linalg.norm(x - (nodes[i] + t * (nodes[j] - nodes[i]))))
+                    - ((1 - t) * radii[i] + t * radii[j])
+                    for i, j in edges
+                    for t in [float(np.clip(np.dot(x - nodes[i], nodes[j] - nodes[i])
+                                            / np.dot(nodes[j] - nodes[i], nodes[j] - nodes[i]),
+                                            0.0, 1.0))])
+        assert g.tube_excess(x) == pytest.approx(brute, abs=1e-12)
+
+
 def test_curvature_weighting_penalises_bends() -> None:
     g = y_graph()
     plain = g.geodesic_from(0)[g.labels["A"]]

@@ -10,6 +10,7 @@ import pytest
 
 from sim4endor import suite
 from sim4endor.models import wires
+from sim4endor.models.scene import SceneConfig
 from sim4endor.tasks import TaskConfigError, coronary
 from sim4endor.vessels.generators.coronary_arteries import (
     FINET,
@@ -126,19 +127,25 @@ def test_the_coronary_domain_builds_a_tree_and_steps(tmp_path: Path) -> None:
     timestep = env.reset()
     assert env.task.anatomy.vessel.name == "right_coronary_00001"
     assert env.task.target in ("AM", "PDA", "PLB")
+    # The domain's own episode limit (40 s: 152 mm paths through up to four bifurcations).
+    assert env.task.config.termination == coronary.TERMINATION
+    assert env._step_limit == pytest.approx(coronary.TERMINATION.time_limit / 0.05)
     for _ in range(5):
         timestep = env.step([1.0, 0.0])
         assert np.isfinite(timestep.reward)
     assert env.task.step_info()["failure"] == ""
 
 
-def test_the_coronary_scene_uses_the_workhorse_wire_narrowed_to_the_smallest_lumen() -> None:
+def test_the_coronary_scene_keeps_the_workhorse_tip_and_narrows_a_wider_one() -> None:
     scene = coronary.scene_for(None)
     workhorse = wires.preset("workhorse")
     assert scene.wire.core_profile == workhorse.core_profile
+    assert scene.wire.tip_angle == workhorse.tip_angle  # 2 mm, 45 degrees: as shaped
     assert scene.driver.max_insertion == coronary.MAX_INSERTION
-    room = 0.85 * (CoronaryArteriesConfig().min_diameter / 2 - workhorse.radius)
-    assert scene.wire.tip_lateral_offset <= room + 1e-9
+    room = coronary.TIP_FILL * (CoronaryArteriesConfig().min_diameter / 2 - workhorse.radius)
+    paper = coronary.scene_for(SceneConfig(wire=wires.preset("paper"))).wire
+    assert paper.tip_angle < wires.preset("paper").tip_angle  # 5 mm, 35 degrees: 1.48 mm wide
+    assert paper.tip_lateral_offset <= room + 1e-9
 
 
 def test_a_target_the_tree_lacks_is_refused(tmp_path: Path) -> None:

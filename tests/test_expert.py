@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from sim4endor import suite
-from sim4endor.tasks.expert import CenterlineExpert, run_expert
+from sim4endor.tasks.expert import CenterlineExpert, ExpertConfig, run_expert
 
 PHANTOM_TASKS = [(domain, task) for domain in ("simplified_phantom", "vascular_phantom")
                  for task in ("task_a", "task_b")]
@@ -57,3 +57,36 @@ def test_expert_actions_stay_in_the_action_box_and_reset_forgets_the_episode() -
     assert expert(env.physics, env.task)[0] == -1.0
     expert.reset()
     assert expert(env.physics, env.task)[0] > 0.0
+
+
+def test_the_expert_reads_the_tip_of_the_wire_in_the_physics() -> None:
+    """The body axis is measured behind the wire's own pre-bent tip: 5 mm for the paper
+    wire (as ExpertConfig's old fixed default), 2 mm for the workhorse."""
+    for wire, tip in (("paper", 0.005), ("workhorse", 0.002)):
+        env = suite.load("simplified_phantom", "task_a", {"random": 0, "wire": wire})
+        env.reset()
+        points = env.physics.wire_points()
+        start = env.physics.tip_start_index()
+        arc = np.linalg.norm(np.diff(points[start:], axis=0), axis=1).sum()
+        assert arc == pytest.approx(tip, rel=1e-6)
+    fixed = CenterlineExpert(ExpertConfig(tip_length=0.005))
+    read = CenterlineExpert()
+    env = suite.load("simplified_phantom", "task_b", {"random": 0})
+    env.reset()
+    for _ in range(30):
+        action = read(env.physics, env.task)
+        np.testing.assert_allclose(action, fixed(env.physics, env.task))
+        env.step(action)
+
+
+def test_a_blocked_carriage_makes_the_expert_pull_back() -> None:
+    env = suite.load("simplified_phantom", "task_a", {"random": 0})
+    env.reset()
+    expert = CenterlineExpert()
+    assert expert(env.physics, env.task)[0] > 0.0
+    insertion, rotation = env.physics.driver_targets()
+    # The servo target 3 mm ahead of the carriage: it pushes at its force limit.
+    env.physics.set_driver_targets(insertion + 0.003, rotation)
+    expert.reset()
+    assert expert(env.physics, env.task)[0] < 0.0
+

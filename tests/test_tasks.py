@@ -117,6 +117,9 @@ def test_a_failure_on_the_step_that_reaches_the_target_is_not_a_success() -> Non
         {
             "reward": RewardConfig(success_distance=1.0),
             "termination": TerminationConfig(max_rotation=0.01),
+            # No initial roll: one drawn near -9° would let the first roll stay in the limit
+            # (seen once: about 1 run in 50 with an unseeded task).
+            "initial_state": {"rotation_range": 0.0},
         },
     )
     last = _run(env, [np.array([0.0, 1.0])])[-1]

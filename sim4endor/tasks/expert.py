@@ -21,14 +21,13 @@ Example:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from dm_control.rl import control
 from numpy.typing import NDArray
 
 from sim4endor import rewards
-from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.tasks.navigation import NavigationTask
 from sim4endor.vessels.centerline import Projection
@@ -55,8 +54,14 @@ class ExpertConfig:
         lost: A manifold distance this much (m) above the best of the episode means the tip
             took a wrong branch.
         back_off_steps: Control steps of full retraction after a wrong branch.
+        stall: A carriage lagging its commanded insertion by this much (m) pushes at the
+            driver's force limit: the wire is blocked (buckled, or caught on the wall), and
+            pushing on only winds up the command until the insertion limit ends the episode;
+            the expert pulls back (``back_push``) instead, as a hand feels the resistance.
         tip_length: Arc length of the wire's pre-bent tip (m); the body axis is measured just
-            proximal of it.
+            proximal of it. ``None`` (default): the tip of the wire in the physics, whatever
+            its preset (a 2 mm workhorse tip measured as a 5 mm one mixes the tip's bend into
+            the body axis).
     """
 
     lookahead: float = 0.006
@@ -69,7 +74,8 @@ class ExpertConfig:
     back_push: float = -0.5
     lost: float = 0.004
     back_off_steps: int = 8
-    tip_length: float = field(default_factory=lambda: GuidewireConfig().tip_length)
+    stall: float = 0.002
+    tip_length: float | None = None
 
 
 class CenterlineExpert:
@@ -81,8 +87,7 @@ class CenterlineExpert:
     def __init__(self, config: ExpertConfig | None = None) -> None:
         self.config = config or ExpertConfig()
         self._neighbours: dict[str, list[list[int]]] = {}  # per anatomy
-        self._best = math.inf
-        self._backing_off = 0
+        self.reset()
 
     def reset(self) -> None:
         """Forgets the episode (best distance, retraction under way)."""
@@ -98,6 +103,11 @@ class CenterlineExpert:
         d = distance.at(proj)
         if self._backing_off:
             self._backing_off -= 1
+            if not self._backing_off:
+                # Measure from where the retraction ended: above the bifurcation the tip is
+                # further from the target than where the wrong turn was seen, which would
+                # otherwise read as another wrong branch and pull the wire all the way out.
+                self._best = math.inf
             return np.array([-1.0, 0.0])
         if d > self._best + cfg.lost:
             # The tip went down a branch off the path: pull it back above the bifurcation.
@@ -108,7 +118,7 @@ class CenterlineExpert:
 
         force = physics.tip_contact_force()
         heading = _unit(points[-1] - points[-2])
-        body = self._body_axis(points)
+        body = self._body_axis(points, physics.tip_start_index())
         path = _unit(self._path_ahead(distance, self._adjacency(task), proj))
         bend = heading - (heading @ body) * body
         turn = path - (path @ body) * body
@@ -119,7 +129,8 @@ class CenterlineExpert:
             phi = math.atan2(float(body @ np.cross(bend, turn)), float(bend @ turn))
             rotate = float(np.clip(phi / task.config.action.max_rotation_step, -1.0, 1.0))
             aligned = abs(math.degrees(phi)) < cfg.tolerance_deg
-        if force > cfg.back_force:
+        stalled = physics.driver_targets()[0] - physics.insertion_depth() > cfg.stall
+        if force > cfg.back_force or stalled:
             insert = cfg.back_push
         elif not aligned:
             insert = 0.0
@@ -135,11 +146,15 @@ class CenterlineExpert:
             self._neighbours[key] = task.anatomy.vessel.centerline.neighbours()
         return self._neighbours[key]
 
-    def _body_axis(self, points: FloatArray) -> FloatArray:
-        """Direction of the wire just proximal of the pre-bent tip."""
-        from_tip = np.cumsum(np.linalg.norm(np.diff(points[::-1], axis=0), axis=1))
-        # 0.999: the tip's segments add up to tip_length only up to rounding.
-        base = len(points) - 1 - int(np.searchsorted(from_tip, self.config.tip_length * 0.999)) - 1
+    def _body_axis(self, points: FloatArray, tip_start: int) -> FloatArray:
+        """Direction of the wire just proximal of the pre-bent tip (which starts at vertex
+        ``tip_start`` unless the config gives its length)."""
+        base = tip_start
+        if self.config.tip_length is not None:
+            from_tip = np.cumsum(np.linalg.norm(np.diff(points[::-1], axis=0), axis=1))
+            # 0.999: the tip's segments add up to tip_length only up to rounding.
+            length = self.config.tip_length * 0.999
+            base = len(points) - 1 - int(np.searchsorted(from_tip, length)) - 1
         base = max(base, 2)
         return _unit(points[base] - points[base - 2])
 

@@ -79,9 +79,11 @@ class StepEvaluation:
 def lumen_excess(anatomy: Anatomy, point: FloatArray, proj: Projection | None = None) -> float:
     """Returns how far ``point`` lies outside the lumen (m; negative inside).
 
-    The lumen is approximated by the tubes around the centerline graph, so the excess is the
-    distance to the graph minus the interpolated radius. Points behind the inlet plane are in
-    the introducer sheath and count as inside.
+    The lumen is approximated by the union of the tubes around the centerline graph's edges
+    (:meth:`~sim4endor.vessels.centerline.CenterlineGraph.tube_excess`): inside the nearest
+    edge's tube the excess is the distance to the graph minus the interpolated radius; a point
+    outside it may still lie inside another, larger tube (near a junction). Points behind the
+    inlet plane are in the introducer sheath and count as inside.
 
     Args:
         anatomy: The anatomy.
@@ -97,7 +99,9 @@ def lumen_excess(anatomy: Anatomy, point: FloatArray, proj: Projection | None = 
         return -math.inf
     graph = vessel.centerline
     proj = proj or graph.project(point)
-    return proj.distance - graph.radius_at_projection(proj)
+    excess = proj.distance - graph.radius_at_projection(proj)
+    # Inside the nearest tube is inside; only the rare point outside it pays for the union.
+    return excess if excess <= 0.0 else min(excess, graph.tube_excess(point))
 
 
 class NavigationTask(base.Task):

@@ -73,6 +73,8 @@ class CenterlineGraph:
     _projector: FloatArray = field(init=False, repr=False)
     _abab: FloatArray = field(init=False, repr=False)
     _half_inv_abab: FloatArray = field(init=False, repr=False)
+    _edge_radius_start: FloatArray = field(init=False, repr=False)
+    _edge_radius_change: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         nodes = np.asarray(self.nodes, dtype=np.float64).reshape(-1, 3)
@@ -123,6 +125,8 @@ class CenterlineGraph:
         object.__setattr__(self, "_projector", projector)
         object.__setattr__(self, "_abab", abab)
         object.__setattr__(self, "_half_inv_abab", 0.5 / np.maximum(abab, 1e-30))
+        object.__setattr__(self, "_edge_radius_start", radii[edges[:, 0]])
+        object.__setattr__(self, "_edge_radius_change", radii[edges[:, 1]] - radii[edges[:, 0]])
 
     # ----------------------------------------------------------------------------- geometry
     @property
@@ -223,6 +227,24 @@ class CenterlineGraph:
         return Projection(
             edge=k, fraction=fraction, point=closest, distance=math.dist(p, closest)
         )
+
+    def tube_excess(self, point: FloatArray) -> float:
+        """Returns how far ``point`` lies outside the union of the edges' tubes (m; < 0 inside).
+
+        Each edge is a tube (a truncated cone) of its nodes' radii; the lumen is their union.
+        Not the nearest edge's tube alone: near a junction a small branch's axis can be nearer
+        to a point inside the large parent than the parent's own axis (measured on a
+        generated left coronary tree: a tip 1.94 mm from the axis of a 2.31 mm left main was
+        1.88 mm from a 1.2 mm branch, read as 0.68 mm outside).
+        """
+        p = np.asarray(point, dtype=np.float64).reshape(3)
+        both = self._projector @ np.array([*p.tolist(), 1.0])
+        edges = len(self._abab)
+        along2, base = both[:edges], both[edges:]
+        t = np.minimum(np.maximum(along2 * self._half_inv_abab, 0.0), 1.0)
+        squared = np.maximum(base + t * (t * self._abab - along2) + float(p @ p), 0.0)
+        radii = self._edge_radius_start + t * self._edge_radius_change
+        return float((np.sqrt(squared) - radii).min())
 
     def radius_at_projection(self, proj: Projection) -> float:
         """Returns the lumen radius (m) interpolated at a projection onto the graph."""
