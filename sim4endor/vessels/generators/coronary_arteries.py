@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 import tomllib
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any, Literal
@@ -61,7 +60,6 @@ class ArterySegment:
         angle: Angle from the parent's end direction (deg).
         roll: Plane of that angle about the parent's axis (deg).
         turn: Steady curve of the segment in its plane (deg).
-        target: Whether its end is a task target.
     """
 
     name: str
@@ -72,7 +70,6 @@ class ArterySegment:
     roll: tuple[float, float]
     turn: tuple[float, float]
     distal_diameter: tuple[float, float] | None = None
-    target: bool = False
 
 
 def arteries(side: Side) -> tuple[ArterySegment, ...]:
@@ -88,7 +85,7 @@ def arteries(side: Side) -> tuple[ArterySegment, ...]:
         ArterySegment(
             name=row["name"], parent=row["parent"], diameter=pair(row, "diameter"),
             length=pair(row, "length"), angle=pair(row, "angle"), roll=pair(row, "roll"),
-            turn=pair(row, "turn"), target=bool(row.get("target", False)),
+            turn=pair(row, "turn"),
             distal_diameter=pair(row, "distal_diameter") if "distal_diameter" in row else None,
         )
         for row in rows
@@ -323,9 +320,3 @@ def _path(segment: _Drawn, config: CoronaryArteriesConfig,
         Arc(bend, bend_radius, float(rng.uniform(0.0, 360.0))),
         *tortuous_path(after, radius, config, rng, base=steady),
     )
-
-
-def tree_summary(anatomy: GeneratedAnatomy) -> Mapping[str, float]:
-    """Diameters (mm) of a generated tree's lumen at its inlet and ends, for reports."""
-    graph = anatomy.centerline
-    return {name: float(graph.radii[graph.labels[name]] * 2e3) for name in anatomy.targets}
