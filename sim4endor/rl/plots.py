@@ -30,12 +30,13 @@ def read_scalars(run_dir: Path) -> dict[str, Curve]:
 
 
 def _csv_scalars(folder: Path) -> dict[str, Curve]:
-    curves = {}
-    for path in sorted(folder.rglob("*.csv")):
-        if path.stat().st_size:
-            data = np.loadtxt(path, delimiter=",", ndmin=2)
-            curves[path.relative_to(folder).with_suffix("").as_posix()] = (data[:, 0], data[:, 1])
-    return curves
+    return {path.relative_to(folder).with_suffix("").as_posix(): _csv_curve(path)
+            for path in sorted(folder.rglob("*.csv")) if path.stat().st_size}
+
+
+def _csv_curve(path: Path) -> Curve:
+    data = np.loadtxt(path, delimiter=",", ndmin=2)
+    return data[:, 0], data[:, 1]
 
 
 def _tensorboard_scalars(folder: Path) -> dict[str, Curve]:
@@ -55,6 +56,10 @@ def _tensorboard_scalars(folder: Path) -> dict[str, Curve]:
 
 def read_scalar(run_dir: Path, name: str) -> Curve:
     """Returns (frames, values) of logged scalar ``name`` (e.g. ``eval/success_rate``)."""
+    # A CSV run logs each scalar to its own file: read that one, not the whole log.
+    path = Path(run_dir) / SCALARS_DIR / f"{name}.csv"
+    if path.is_file() and path.stat().st_size:
+        return _csv_curve(path)
     return read_scalars(run_dir).get(name, (np.zeros(0), np.zeros(0)))
 
 
