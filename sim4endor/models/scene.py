@@ -67,11 +67,18 @@ def config_for_vessel(
     graph = vessel.centerline
     from_inlet = graph.geodesic_from(graph.labels["inlet"])
     depth = max(float(from_inlet[graph.labels[name]]) for name in vessel.targets)
-    driver = dataclasses.replace(base.driver, max_insertion=depth + margin)
-    length = driver.max_insertion + driver.initial_protrusion + 0.003
-    wire = dataclasses.replace(base.wire, length=length)
-    wire = fit_tip(wire, float(graph.radii.min()), tip_fill, vessel.name)
-    return dataclasses.replace(base, driver=driver, wire=wire)
+    scene = with_travel(base, depth + margin)
+    wire = fit_tip(scene.wire, float(graph.radii.min()), tip_fill, vessel.name)
+    return dataclasses.replace(scene, wire=wire)
+
+
+def with_travel(base: SceneConfig, max_insertion: float) -> SceneConfig:
+    """Returns ``base`` with the driver's insertion travel ``max_insertion`` (m) and a wire
+    just long enough for it: the travel, the protrusion at the start and 3 mm of sheath slack."""
+    driver = dataclasses.replace(base.driver, max_insertion=max_insertion)
+    length = max_insertion + driver.initial_protrusion + 0.003
+    return dataclasses.replace(base, driver=driver,
+                               wire=dataclasses.replace(base.wire, length=length))
 
 
 def fit_tip(wire: GuidewireConfig, lumen_radius: float, tip_fill: float = 0.85,

@@ -130,10 +130,10 @@ class AnatomyPool(AnatomySource):
     def draw(self, random: np.random.RandomState) -> tuple[Anatomy, str]:
         """Draws a member uniformly, then one of its targets uniformly."""
         anatomy = self._get(int(random.randint(len(self._builders))))
-        targets = sorted(anatomy.vessel.targets)
         if self._target is not None:
             check_target(anatomy.vessel, self._target)
             return anatomy, self._target
+        targets = sorted(anatomy.vessel.targets)
         return anatomy, targets[int(random.randint(len(targets)))]
 
     def initial(self) -> Anatomy:

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Literal
 
 from sim4endor.models import wires
-from sim4endor.models.scene import SceneConfig, fit_tip
+from sim4endor.models.scene import SceneConfig, fit_tip, with_travel
 from sim4endor.tasks import anatomy
 from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, compile_anatomy
 from sim4endor.tasks.config import TaskConfigError, TerminationConfig
@@ -73,14 +73,11 @@ def scene_for(base: SceneConfig | None) -> SceneConfig:
     (:data:`TIP_FILL`) narrowed to it; the catalogue's coronary tips are kept as shaped."""
     from sim4endor.vessels.generators.coronary_arteries import CoronaryArteriesConfig
 
-    scene = base or SceneConfig(wire=wires.preset(DEFAULT_WIRE))
-    driver = dataclasses.replace(scene.driver, max_insertion=MAX_INSERTION)
-    wire = dataclasses.replace(
-        scene.wire, length=MAX_INSERTION + driver.initial_protrusion + 0.003
-    )
+    scene = with_travel(base or SceneConfig(wire=wires.preset(DEFAULT_WIRE)), MAX_INSERTION)
     smallest = CoronaryArteriesConfig().min_diameter / 2
-    return dataclasses.replace(scene, driver=driver,
-                               wire=fit_tip(wire, smallest, TIP_FILL, where="a coronary tree"))
+    return dataclasses.replace(
+        scene, wire=fit_tip(scene.wire, smallest, TIP_FILL, where="a coronary tree")
+    )
 
 
 def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig) -> Anatomy:
