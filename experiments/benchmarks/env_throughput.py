@@ -8,10 +8,16 @@ Env and gymnasium steps/s are wall clock; the bare-physics rate and both overhea
 thread CPU time, so time the process spends descheduled by other jobs counts in neither.
 
 Issue 4 targets: >= 100 env steps/s on one core on the simplified phantom; env overhead
-<= 10 % over the physics alone; a reset costs milliseconds.
+<= 10 % over the physics alone; a reset costs milliseconds. Issue 16: >= 400 env steps/s on
+one core on every shipped anatomy and on generated coronary trees (``--all``).
 
 Usage:
-    python experiments/benchmarks/env_throughput.py [--steps 400] [--cpu 0] [--json]
+    python experiments/benchmarks/env_throughput.py [--domain D --task T] [--steps 400]
+        [--cpu 0] [--json]
+    python experiments/benchmarks/env_throughput.py --all [--cpu 0] [--json]
+
+``--all`` measures every task of ``suite.ALL_TASKS`` (the shipped phantoms, the random and
+the coronary trees) and prints one table row per task (``--json``: one line per task).
 """
 
 from __future__ import annotations
@@ -21,6 +27,8 @@ import json
 import os
 import statistics
 import time
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -36,16 +44,33 @@ def _random_actions(steps: int, seed: int) -> np.ndarray:
     return actions
 
 
-def env_loop(
-    domain: str, task: str, actions: np.ndarray
-) -> tuple[float, float, float, list[tuple[bool, tuple[float, float]]], int, float]:
-    """Runs the dm_control env on ``actions``.
+@dataclass
+class EnvRun:
+    """One timed run of the env loop.
 
-    Returns wall-clock seconds in total, the CPU seconds of the loop and of ``physics.step``
-    within it (thread CPU time, timed in the same run, so their difference is the env's own
-    cost and time the process spends descheduled by other jobs counts in neither), the
-    driver targets per step, sub-steps per env step and the physics timestep.
+    Attributes:
+        wall_s: Wall-clock seconds of the loop.
+        cpu_s: Thread CPU seconds of the loop.
+        physics_cpu_s: Thread CPU seconds inside ``physics.step`` (timed in the same run, so
+            ``cpu_s - physics_cpu_s`` is the env's own cost; time the process spends
+            descheduled by other jobs counts in neither).
+        commands: (reset?, driver targets) per step, for the bare-physics replay.
+        n_sub_steps: Physics steps per env step.
+        timestep: Physics time step (s).
+        mean_contacts: Active contacts after an env step, averaged over the steps.
     """
+
+    wall_s: float
+    cpu_s: float
+    physics_cpu_s: float
+    commands: list[tuple[bool, tuple[float, float]]]
+    n_sub_steps: int
+    timestep: float
+    mean_contacts: float
+
+
+def env_loop(domain: str, task: str, actions: np.ndarray) -> EnvRun:
+    """Runs the dm_control env on ``actions``."""
     env = suite.load(domain, task, {"random": 0})
     env.reset()
     physics = env.physics
@@ -63,16 +88,19 @@ def env_loop(
     # (reset?, driver targets) per step: the replay resets where the env did, from the same
     # start pose, so both loops simulate the same trajectory.
     commands: list[tuple[bool, tuple[float, float]]] = []
+    contacts = 0
     start, cpu_start = time.perf_counter(), time.thread_time()
     for action in actions:
         reset = env.step(action).last()
+        contacts += physics.data.ncon
         commands.append((False, physics.driver_targets()))
         if reset:
             env.reset()
             commands.append((True, physics.driver_targets()))
     cpu = time.thread_time() - cpu_start
     wall = time.perf_counter() - start
-    return wall, cpu, inner[0], commands, env._n_sub_steps, physics.timestep()
+    return EnvRun(wall, cpu, inner[0], commands, env._n_sub_steps, physics.timestep(),
+                  contacts / len(actions))
 
 
 def physics_loop(
@@ -120,56 +148,94 @@ def reset_cost(domain: str, task: str, count: int) -> float:
     return statistics.median(times)
 
 
+def measure(domain: str, task: str, steps: int, repeats: int) -> dict[str, Any]:
+    """Times one task (env, bare physics, gymnasium, reset) and returns its figures."""
+    actions = _random_actions(steps, seed=0)
+    t_load = time.perf_counter()
+    suite.load(domain, task)
+    load_s = time.perf_counter() - t_load
+    # Alternating the loops and keeping the fastest run of each cancels most of the noise
+    # of a shared machine.
+    runs: list[EnvRun] = []
+    physics_runs, gym_runs, overheads = [], [], []
+    for _ in range(repeats):
+        run = env_loop(domain, task, actions)
+        runs.append(run)
+        overheads.append(100.0 * (run.cpu_s - run.physics_cpu_s) / run.physics_cpu_s)
+        physics_runs.append(physics_loop(domain, task, run.commands, run.n_sub_steps))
+        gym_runs.append(gym_loop(domain, task, actions))
+    env_s = min(run.wall_s for run in runs)
+    physics_s, gym_s = min(physics_runs), min(gym_runs)
+    run = runs[0]
+    return {
+        "domain": domain,
+        "task": task,
+        "env_steps": steps,
+        "physics_steps_per_env_step": run.n_sub_steps,
+        "timestep_ms": 1e3 * run.timestep,
+        "env_steps_per_s": steps / env_s,
+        "gym_steps_per_s": steps / gym_s,
+        "physics_only_env_steps_per_s": steps / physics_s,
+        # Env CPU time outside physics.step over CPU time inside it, median of the repeats.
+        "env_overhead_percent": statistics.median(overheads),
+        # CPU time of the whole env loop over the bare-physics replay, fastest runs of each.
+        "env_vs_replay_percent": 100.0 * (min(r.cpu_s for r in runs) - physics_s) / physics_s,
+        "realtime_factor": steps * run.n_sub_steps * run.timestep / env_s,
+        "mean_contacts": run.mean_contacts,
+        "reset_ms": 1e3 * reset_cost(domain, task, 20),
+        "first_load_s": load_s,
+        "load_average_1min": os.getloadavg()[0],
+    }
+
+
+#: Columns of the ``--all`` table: (heading, key, format).
+_TABLE = (
+    ("domain", "domain", "{}"), ("task", "task", "{}"),
+    ("env steps/s", "env_steps_per_s", "{:.0f}"),
+    ("physics only", "physics_only_env_steps_per_s", "{:.0f}"),
+    ("x real time", "realtime_factor", "{:.1f}"),
+    ("mean contacts", "mean_contacts", "{:.1f}"),
+    ("reset ms", "reset_ms", "{:.2f}"),
+    ("first load s", "first_load_s", "{:.2f}"),
+)
+
+
 def main() -> None:
     """Runs the benchmark and prints the figures."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--domain", default="simplified_phantom")
     parser.add_argument("--task", default="task_a")
+    parser.add_argument("--all", action="store_true",
+                        help="every task of suite.ALL_TASKS, one table row each")
     parser.add_argument("--steps", type=int, default=400)
     parser.add_argument("--cpu", type=int, default=None, help="pin to this core")
     parser.add_argument("--repeats", type=int, default=3,
                         help="alternate the loops this often and keep each one's fastest run")
-    parser.add_argument("--json", action="store_true", help="print one JSON line")
+    parser.add_argument("--json", action="store_true", help="print one JSON line per task")
     args = parser.parse_args()
     if args.cpu is not None:
         os.sched_setaffinity(0, {args.cpu})
-    actions = _random_actions(args.steps, seed=0)
-    t_load = time.perf_counter()
-    suite.load(args.domain, args.task)
-    load_s = time.perf_counter() - t_load
-    # Alternating the loops and keeping the fastest run of each cancels most of the noise
-    # of a shared machine.
-    env_runs, env_cpu_runs, physics_runs, gym_runs, overheads = [], [], [], [], []
-    for _ in range(args.repeats):
-        env_s, cpu_s, inner_s, commands, n_sub, dt = env_loop(args.domain, args.task, actions)
-        env_runs.append(env_s)
-        env_cpu_runs.append(cpu_s)
-        overheads.append(100.0 * (cpu_s - inner_s) / inner_s)
-        physics_runs.append(physics_loop(args.domain, args.task, commands, n_sub))
-        gym_runs.append(gym_loop(args.domain, args.task, actions))
-    env_s, physics_s, gym_s = min(env_runs), min(physics_runs), min(gym_runs)
-    result = {
-        "domain": args.domain,
-        "task": args.task,
-        "env_steps": args.steps,
-        "physics_steps_per_env_step": n_sub,
-        "env_steps_per_s": args.steps / env_s,
-        "gym_steps_per_s": args.steps / gym_s,
-        "physics_only_env_steps_per_s": args.steps / physics_s,
-        # Env CPU time outside physics.step over CPU time inside it, median of the repeats.
-        "env_overhead_percent": statistics.median(overheads),
-        # CPU time of the whole env loop over the bare-physics replay, fastest runs of each.
-        "env_vs_replay_percent": 100.0 * (min(env_cpu_runs) - physics_s) / physics_s,
-        "realtime_factor": args.steps * n_sub * dt / env_s,
-        "reset_ms": 1e3 * reset_cost(args.domain, args.task, 20),
-        "first_load_s": load_s,
-        "load_average_1min": os.getloadavg()[0],
-    }
-    if args.json:
-        print(json.dumps(result))
+    if not args.all:
+        result = measure(args.domain, args.task, args.steps, args.repeats)
+        if args.json:
+            print(json.dumps(result))
+            return
+        for key, value in result.items():
+            print(f"{key:30s} {value:.3f}" if isinstance(value, float) else f"{key:30s} {value}")
         return
-    for key, value in result.items():
-        print(f"{key:30s} {value:.3f}" if isinstance(value, float) else f"{key:30s} {value}")
+    if not args.json:
+        print("| " + " | ".join(heading for heading, _, _ in _TABLE) + " |")
+        print("|" + "---|" * len(_TABLE))
+    for domain, task in suite.ALL_TASKS:
+        result = measure(domain, task, args.steps, args.repeats)
+        if args.json:
+            print(json.dumps(result), flush=True)
+        else:
+            cells = (fmt.format(result[key]) for _, key, fmt in _TABLE)
+            print("| " + " | ".join(cells) + " |", flush=True)
+    if not args.json:
+        print(f"\n{args.steps} random env steps per task, fastest of {args.repeats} runs; "
+              f"load average {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":
