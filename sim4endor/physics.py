@@ -141,6 +141,11 @@ class GuidewirePhysics(dm_mujoco.Physics):
         )
         return velocity[3:].copy()
 
+    def tip_frame(self) -> FloatArray:
+        """Rotation of the wire's distal segment (3, 3): columns are its axes in world
+        coordinates, so the frame turns with the tip's heading and roll."""
+        return self.data.ptr.xmat[self._indices().wire_bodies[-1]].reshape(3, 3).copy()
+
     def wire_points(self) -> FloatArray:
         """Wire centreline vertices, proximal first, tip last (m), shape (N+1, 3)."""
         return np.vstack([self.data.xpos[self._indices().wire_bodies], self.tip_position()[None]])

@@ -26,9 +26,18 @@ entry                  shape      unit    meaning
 ``rotation``           (1,)       rad     opt-in: measured rotation of the carriage
 ``manifold_distance``  (1,)       m       opt-in: geodesic tip-to-target distance
 ``pixels``             (H, W, 1)  uint8   opt-in: fluoroscopy-like top-down projection
+``path_ahead``         (24,)      m       opt-in: route to the target, 8 points, tip frame
+``axis_offset``        (3,)       1       opt-in: tip to centerline, lumen radii, tip frame
+``lumen_radius``       (1,)       m       opt-in: lumen radius at the tip
+``tip_velocity_local`` (3,)       m/s     opt-in: tip velocity, tip frame
+``tip_force``          (1,)       N       opt-in: normal wall force on the pre-bent tip
+``wall_force``         (1,)       N       opt-in: total normal wall force on the wire
 =====================  =========  ======  =================================================
 
-Opt in with ``task_kwargs={"observations": ("target_position", ...)}``.
+Opt in with ``task_kwargs={"observations": ("target_position", ...)}``, or replace the whole
+observation by a named set: ``task_kwargs={"observations": "generalist"}`` gives the
+tip-frame entries that do not change when the anatomy moves
+(:mod:`sim4endor.tasks.tip_frame`; docs/tasks/index.md).
 
 **Wire**: ``task_kwargs={"wire": "workhorse"}`` picks a catalogue preset
 (:mod:`sim4endor.models.wires`: ``paper`` (default), ``workhorse``, ``intermediate``,
@@ -72,6 +81,7 @@ from sim4endor.physics import GuidewirePhysics
 from sim4endor.rewards import RewardConfig
 from sim4endor.tasks import (
     DEFAULT_OBSERVATIONS,
+    OBSERVATION_SETS,
     ActionConfig,
     Anatomy,
     AnatomySource,
@@ -155,12 +165,6 @@ def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig
     reward = _config(reward, RewardConfig, "reward")
     if "curvature_weight" in kwargs:
         reward = dataclasses.replace(reward, curvature_weight=kwargs["curvature_weight"])
-    extras = kwargs.get("observations", ())
-    if isinstance(extras, str) or not all(isinstance(o, str) for o in extras):
-        raise TaskConfigError(
-            f"task_kwargs observations must be a list of entry names, e.g. ['rotation'], "
-            f"got {extras!r}."
-        )
     return NavigationConfig(
         action=_config(kwargs.get("action", ActionConfig()), ActionConfig, "action"),
         reward=reward,
@@ -168,10 +172,27 @@ def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig
                             "termination", termination),
         initial_state=_config(kwargs.get("initial_state", InitialStateConfig()),
                               InitialStateConfig, "initial_state"),
-        observations=DEFAULT_OBSERVATIONS + tuple(o for o in extras if o not in
-                                                  DEFAULT_OBSERVATIONS),
+        observations=_observations(kwargs.get("observations", ())),
         pixels=_config(kwargs.get("pixels", PixelsConfig()), PixelsConfig, "pixels"),
     )
+
+
+def _observations(value: Any) -> tuple[str, ...]:
+    """The observation entries of ``task_kwargs["observations"]``: a set's name (used as it
+    is) or a list of entries appended to the paper's defaults."""
+    if isinstance(value, str):
+        if value not in OBSERVATION_SETS:
+            raise TaskConfigError(
+                f"task_kwargs observations {value!r} is not an observation set; sets: "
+                f"{sorted(OBSERVATION_SETS)} (or give a list of entry names, e.g. ['rotation'])."
+            )
+        return OBSERVATION_SETS[value]
+    if not all(isinstance(o, str) for o in value):
+        raise TaskConfigError(
+            f"task_kwargs observations must be a set name such as 'generalist' or a list of "
+            f"entry names, e.g. ['rotation'], got {value!r}."
+        )
+    return DEFAULT_OBSERVATIONS + tuple(o for o in value if o not in DEFAULT_OBSERVATIONS)
 
 
 def _config(value: Any, cls: type[_Config], name: str, base: _Config | None = None

@@ -4,6 +4,7 @@ from sim4endor.tasks import fluoroscopy
 from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, AnatomySource, FixedAnatomy
 from sim4endor.tasks.config import (
     DEFAULT_OBSERVATIONS,
+    OBSERVATION_SETS,
     OPTIONAL_OBSERVATIONS,
     ActionConfig,
     InitialStateConfig,
@@ -17,6 +18,7 @@ from sim4endor.tasks.navigation import FAILURES, InvalidActionError, NavigationT
 __all__ = [
     "DEFAULT_OBSERVATIONS",
     "FAILURES",
+    "OBSERVATION_SETS",
     "OPTIONAL_OBSERVATIONS",
     "ActionConfig",
     "Anatomy",

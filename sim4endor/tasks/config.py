@@ -10,6 +10,7 @@ import numpy as np
 from sim4endor._checks import require
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rewards import RewardConfig
+from sim4endor.tasks.tip_frame import PATH_POINTS
 
 #: Observation entries every task returns: the paper's state s_t = [p_t, v_t].
 DEFAULT_OBSERVATIONS: tuple[str, ...] = ("tip_position", "tip_velocity")
@@ -22,7 +23,30 @@ OPTIONAL_OBSERVATIONS: tuple[str, ...] = (
     "rotation",
     "manifold_distance",
     "pixels",
+    "path_ahead",
+    "axis_offset",
+    "lumen_radius",
+    "tip_velocity_local",
+    "tip_force",
+    "wall_force",
 )
+#: Named observation sets (``task_kwargs={"observations": "generalist"}``), each used as it
+#: is, without the defaults. ``generalist`` is what the tip sees in its own frame
+#: (:mod:`sim4endor.tasks.tip_frame`) plus scalars: it does not change when the anatomy is
+#: rotated or translated with the wire, so nothing in it names one patient's coordinates.
+OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
+    "paper": DEFAULT_OBSERVATIONS,
+    "generalist": (
+        "path_ahead",
+        "axis_offset",
+        "lumen_radius",
+        "tip_velocity_local",
+        "manifold_distance",
+        "tip_force",
+        "wall_force",
+        "last_action",
+    ),
+}
 
 #: Unit and size of each observation entry (``wire_shape`` is 3 per wire vertex).
 OBSERVATION_UNITS: dict[str, tuple[str, int | None]] = {
@@ -35,6 +59,12 @@ OBSERVATION_UNITS: dict[str, tuple[str, int | None]] = {
     "rotation": ("rad", 1),
     "manifold_distance": ("m", 1),
     "pixels": ("grey level 0-255", None),
+    "path_ahead": ("m, tip frame", 3 * PATH_POINTS),
+    "axis_offset": ("lumen radii, tip frame", 3),
+    "lumen_radius": ("m", 1),
+    "tip_velocity_local": ("m/s, tip frame", 3),
+    "tip_force": ("N", 1),
+    "wall_force": ("N", 1),
 }
 
 

@@ -26,6 +26,7 @@ from sim4endor.models import constants as names
 from sim4endor.tasks.anatomy import Anatomy, AnatomySource
 from sim4endor.tasks.config import NavigationConfig
 from sim4endor.tasks.fluoroscopy import Fluoroscope
+from sim4endor.tasks.tip_frame import PATH_POINTS, PathToTarget, TipView, tip_view
 from sim4endor.vessels.centerline import Projection
 
 FloatArray = NDArray[np.float64]
@@ -39,6 +40,10 @@ FAILURES: tuple[str, ...] = (
     "rotation_limit",
     "push_force",
 )
+
+
+#: Observation entries read from one :class:`~sim4endor.tasks.tip_frame.TipView` per step.
+_TIP_VIEW_ENTRIES = frozenset({"path_ahead", "axis_offset", "lumen_radius", "tip_velocity_local"})
 
 
 def failure_code(failure: str) -> int:
@@ -127,6 +132,7 @@ class NavigationTask(base.Task):
         self.config = config or NavigationConfig()
         self._anatomies = anatomies
         self._distances: dict[tuple[str, str, str], rewards.DistanceToTarget] = {}
+        self._paths: dict[tuple[str, str], PathToTarget] = {}
         self._anatomy = anatomies.initial()
         self._target = ""
         self._insertion = 0.0
@@ -175,6 +181,15 @@ class NavigationTask(base.Task):
         distance = self._distance("manifold")
         assert isinstance(distance, rewards.ManifoldDistance)
         return distance
+
+    def path_to_target(self) -> PathToTarget:
+        """The route to the current target along the centerline (built once per anatomy and
+        target), for the ``path_ahead`` observation."""
+        key = (self._anatomy.key, self._target)
+        if key not in self._paths:
+            graph = self._anatomy.vessel.centerline
+            self._paths[key] = PathToTarget.to_node(graph, graph.labels[self._target])
+        return self._paths[key]
 
     # ------------------------------------------------------------------------ episode
     def initialize_episode(self, physics: control.Physics) -> None:
@@ -333,6 +348,12 @@ class NavigationTask(base.Task):
             "rotation": (1,),
             "manifold_distance": (1,),
             "pixels": (pixels.height, pixels.width, 1),
+            "path_ahead": (3 * PATH_POINTS,),
+            "axis_offset": (3,),
+            "lumen_radius": (1,),
+            "tip_velocity_local": (3,),
+            "tip_force": (1,),
+            "wall_force": (1,),
         }
         return collections.OrderedDict(
             (name, specs.Array(shapes[name], np.uint8 if name == "pixels" else np.float64, name))
@@ -342,11 +363,19 @@ class NavigationTask(base.Task):
     def get_observation(self, physics: control.Physics) -> Mapping[str, np.ndarray]:
         """Returns the configured observation entries, in order (SI units)."""
         obs: collections.OrderedDict[str, np.ndarray] = collections.OrderedDict()
+        view = self._tip_view(physics) if _TIP_VIEW_ENTRIES & set(self.config.observations) \
+            else None
         for name in self.config.observations:
-            obs[name] = self._observe(name, physics)
+            obs[name] = self._observe(name, physics, view)
         return obs
 
-    def _observe(self, name: str, physics: control.Physics) -> np.ndarray:
+    def _tip_view(self, physics: control.Physics) -> TipView:
+        """The tip-frame entries of the current state, computed once per observation."""
+        return tip_view(self.path_to_target(), physics.tip_position(), physics.tip_frame(),
+                        physics.tip_velocity())
+
+    def _observe(self, name: str, physics: control.Physics, view: TipView | None
+                 ) -> np.ndarray:
         # The physics accessors already return fresh float64 arrays.
         if name == "tip_position":
             return physics.tip_position()
@@ -366,6 +395,19 @@ class NavigationTask(base.Task):
             return np.array([self.manifold_distance()(physics.tip_position())])
         if name == "pixels":
             return self._fluoroscopy(physics)
+        if name == "tip_force":
+            return np.array([physics.tip_contact_force()])
+        if name == "wall_force":
+            return np.array([physics.wall_contact_force()])
+        assert view is not None  # get_observation computes it for these entries
+        if name == "path_ahead":
+            return view.path_ahead.reshape(-1)
+        if name == "axis_offset":
+            return view.axis_offset
+        if name == "lumen_radius":
+            return np.array([view.lumen_radius])
+        if name == "tip_velocity_local":
+            return view.tip_velocity
         raise KeyError(name)  # unreachable: NavigationConfig validates the names
 
     def _fluoroscopy(self, physics: control.Physics) -> np.ndarray:
