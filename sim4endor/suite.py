@@ -273,6 +273,9 @@ def _cache_dir(kwargs: Mapping[str, Any]) -> Path | None:
 
 
 def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> AnatomySource:
+    # Pools fit each tree's wire to its deepest target, unless the wire's vertices are
+    # observed: then every tree needs the same wire, for one observation size.
+    same_wire = "wire_shape" in _observations(kwargs.get("observations", ()))
     if entry.domain == "coronary":
         return coronary.pool(
             size=_integer(kwargs, "pool_size", coronary.DEFAULT_POOL_SIZE, minimum=1),
@@ -281,6 +284,7 @@ def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> Ana
             cache_dir=_cache_dir(kwargs),
             scene=_scene(kwargs, coronary.DEFAULT_WIRE),
             target=None if kwargs.get("target") is None else str(kwargs["target"]),
+            same_wire=same_wire,
         )
     scene = _scene(kwargs)
     if entry.domain == "random_coronary":
@@ -289,6 +293,7 @@ def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> Ana
             seed=_integer(kwargs, "pool_seed", 0, minimum=0),
             cache_dir=_cache_dir(kwargs),
             scene=scene,
+            same_wire=same_wire,
         )
     if entry.vessel is not None and entry.target is not None:
         return FixedAnatomy(compile_anatomy(entry.vessel, scene), entry.target)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -225,3 +226,41 @@ def test_straight_insertion_passes_the_vascular_phantom_to_a() -> None:
     info = env.task.step_info()
     assert info["is_success"], info
     assert max(forces) > env.task.config.termination.max_tip_force
+
+
+@pytest.mark.parametrize("domain", ["random_coronary", "coronary"])
+def test_pool_trees_get_wires_for_their_own_depth_unless_the_wire_is_observed(
+    domain, tmp_path, monkeypatch
+) -> None:
+    """Each pool tree's wire is fitted to its deepest target (fewer segments, faster); with
+    ``wire_shape`` observed every tree keeps the pool's wire, so the entry has one size."""
+    from sim4endor.tasks import coronary, random_coronary
+
+    module = coronary if domain == "coronary" else random_coronary
+    modes = []
+
+    def fake_member(*args):  # stands in for a tree build: (..., scene, same_wire)
+        scene, same_wire = args[-2:]
+        modes.append(same_wire)
+        return compile_anatomy("simplified_phantom", scene,
+                               fit="none" if same_wire else "travel")
+
+    monkeypatch.setattr(module, "build_member", fake_member)
+    for observations in ((), ("wire_shape",)):
+        env = suite.load(domain, "navigate", {"pool_size": 1, "cache_dir": tmp_path,
+                                              "random": 0, "observations": observations})
+        env.reset()
+    assert modes[0] is False and modes[-1] is True
+
+
+def test_travel_fit_keeps_the_tip_and_sizes_the_wire_to_the_deepest_target() -> None:
+    from sim4endor.models import wires
+    from sim4endor.models.scene import SceneConfig, config_for_vessel, fit_travel
+
+    vessel = compile_anatomy("simplified_phantom").vessel
+    wide = SceneConfig(wire=dataclasses.replace(wires.preset("paper"), tip_angle=1.2))
+    travel = fit_travel(vessel, wide)
+    full = config_for_vessel(vessel, wide)
+    assert travel.driver.max_insertion == full.driver.max_insertion
+    assert travel.wire.length == full.wire.length
+    assert travel.wire.tip_angle == 1.2 > full.wire.tip_angle  # only config_for_vessel narrows

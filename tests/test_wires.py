@@ -166,9 +166,9 @@ def test_random_coronary_takes_a_wire_and_its_tree_cache_ignores_it(
 ) -> None:
     calls = []
 
-    def fake_member(seed, cache_dir, scene=None):  # stands in for a 10 s tree build
+    def fake_member(seed, cache_dir, scene=None, same_wire=False):  # for a 10 s tree build
         calls.append((seed, cache_dir, scene))
-        return compile_anatomy("simplified_phantom", scene, fit=False)
+        return compile_anatomy("simplified_phantom", scene, fit="none")
 
     monkeypatch.setattr(random_coronary, "build_member", fake_member)
     for wire in ("paper", "workhorse"):

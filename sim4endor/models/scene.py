@@ -63,13 +63,19 @@ def config_for_vessel(
     wire radius), the tip angle is reduced until it fits (a 35°/5 mm tip is 1.48 mm wide; a
     coronary branch of 0.85 mm radius needs about 12°).
     """
-    base = base or SceneConfig()
+    scene = fit_travel(vessel, base, margin)
+    wire = fit_tip(scene.wire, float(vessel.centerline.radii.min()), tip_fill, vessel.name)
+    return dataclasses.replace(scene, wire=wire)
+
+
+def fit_travel(vessel: Vessel, base: SceneConfig | None = None, margin: float = 0.01
+               ) -> SceneConfig:
+    """Returns ``base`` with the driver's travel the deepest target's centerline distance from
+    the inlet plus ``margin``, and a wire just long enough for it (:func:`with_travel`)."""
     graph = vessel.centerline
     from_inlet = graph.geodesic_from(graph.labels["inlet"])
     depth = max(float(from_inlet[graph.labels[name]]) for name in vessel.targets)
-    scene = with_travel(base, depth + margin)
-    wire = fit_tip(scene.wire, float(graph.radii.min()), tip_fill, vessel.name)
-    return dataclasses.replace(scene, wire=wire)
+    return with_travel(base or SceneConfig(), depth + margin)
 
 
 def with_travel(base: SceneConfig, max_insertion: float) -> SceneConfig:

@@ -11,13 +11,13 @@ import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 import mujoco
 import numpy as np
 
 from sim4endor import vessels
-from sim4endor.models.scene import SceneConfig, build_model, config_for_vessel
+from sim4endor.models.scene import SceneConfig, build_model, config_for_vessel, fit_travel
 from sim4endor.tasks.config import TaskConfigError
 from sim4endor.vessels import Vessel
 from sim4endor.vessels.manifest import MANIFEST_FILE
@@ -42,8 +42,14 @@ class Anatomy:
     model: mujoco.MjModel
 
 
+#: How :func:`compile_anatomy` fits the scene to the vessel: travel and tip
+#: (:func:`~sim4endor.models.scene.config_for_vessel`), the travel only
+#: (:func:`~sim4endor.models.scene.fit_travel`), or not at all.
+Fit = Literal["all", "travel", "none"]
+
+
 def compile_anatomy(
-    vessel: str | Path | Vessel, scene: SceneConfig | None = None, fit: bool = True
+    vessel: str | Path | Vessel, scene: SceneConfig | None = None, fit: Fit = "all"
 ) -> Anatomy:
     """Loads a vessel (name, folder or :class:`Vessel`) and compiles its scene.
 
@@ -53,14 +59,20 @@ def compile_anatomy(
     Args:
         vessel: Vessel name, folder or loaded vessel.
         scene: Wire, driver and timestep (defaults: :class:`SceneConfig`).
-        fit: Fit the insertion range and wire length to the deepest target (fewer segments,
-            faster) and the tip bend to the narrowest lumen
-            (:func:`sim4endor.models.scene.config_for_vessel`). Pools of anatomies pass
-            ``False`` so every member has the same wire, hence the same observation sizes.
+        fit: ``"all"``: fit the insertion range and wire length to the deepest target (fewer
+            segments, faster) and the tip bend to the narrowest lumen
+            (:func:`sim4endor.models.scene.config_for_vessel`); ``"travel"``: only the
+            former (pools whose tip is fitted to the generator's narrowest lumen);
+            ``"none"``: use ``scene`` as it is (pools whose members must all have the same
+            wire, e.g. for the ``wire_shape`` observation).
     """
     vessel = vessel if isinstance(vessel, Vessel) else vessels.load(vessel)
     config = scene or SceneConfig()
-    model = build_model(vessel, config_for_vessel(vessel, config) if fit else config)
+    if fit == "all":
+        config = config_for_vessel(vessel, config)
+    elif fit == "travel":
+        config = fit_travel(vessel, config)
+    model = build_model(vessel, config)
     return Anatomy(key=str(vessel.root), vessel=vessel, model=model)
 
 

@@ -9,9 +9,13 @@ it is generated and built the first time an episode draws it, cached on disk (na
 and content hash) and compiled once.
 
 The wire defaults to the catalogue's ``workhorse`` (PCI is done with 0.014 in workhorse wires
-of about 1 gf); every tree of a pool gets the same wire and driver, so observation sizes agree:
-the driver's travel covers the deepest target of any tree (152 mm measured over 80 trees) and
-a pre-bent tip wider than the smallest lumen the generator draws is narrowed once.
+of about 1 gf); a pre-bent tip wider than the smallest lumen the generator draws is narrowed
+once, for every tree alike. Each tree's driver travel and wire length are fitted to its own
+deepest target (+10 mm), because the physics cost grows about with the square of the
+segment count: the deepest targets of trees 0-7 lie 79-137 mm in (mean 119 mm), so most
+trees compile with 6-16 fewer wire segments than a wire for the deepest target of any tree
+(:data:`MAX_INSERTION`) would need. Only a pool whose observation includes ``wire_shape``
+needs one wire length for all trees (``same_wire=True``), so that the entry has one size.
 """
 
 from __future__ import annotations
@@ -48,8 +52,9 @@ TIP_FILL = 2.0
 #: coronary wall was found; its wall is thinner than a fibrous cap, so the lowest figure is
 #: taken. The paper's phantoms keep its 1 N.
 TERMINATION = TerminationConfig(time_limit=40.0, max_tip_force=0.6)
-#: Insertion travel of the driver (m): the deepest target of 80 generated trees (40 left, 40
-#: right, seeds 0-39) lay 152 mm along the centerline from the catheter's proximal end.
+#: Insertion travel of the driver when every tree gets the same wire (m): the deepest target
+#: of 80 generated trees (40 left, 40 right, seeds 0-39) lay 152 mm along the centerline from
+#: the catheter's proximal end.
 MAX_INSERTION = 0.16
 
 Sides = Literal["left", "right", "both"]
@@ -80,8 +85,10 @@ def scene_for(base: SceneConfig | None) -> SceneConfig:
     )
 
 
-def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig) -> Anatomy:
-    """Generates the tree of ``seed``, builds it once (cached on disk) and compiles it."""
+def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig,
+                 same_wire: bool = False) -> Anatomy:
+    """Generates the tree of ``seed``, builds it once (cached on disk) and compiles it with
+    ``scene``, its travel fitted to the tree's deepest target unless ``same_wire``."""
     from sim4endor.vessels.build import BuildParams
     from sim4endor.vessels.generators.coronary_arteries import (
         CoronaryArteriesConfig,
@@ -95,11 +102,12 @@ def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig) ->
     name = f"{config.side}_coronary_{seed:05d}"
     folder = anatomy.cached_build(coronary_arteries(config, seed=seed), name, cache_dir,
                                   config, params)
-    return compile_anatomy(folder, scene, fit=False)
+    return compile_anatomy(folder, scene, fit="none" if same_wire else "travel")
 
 
 def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = None,
-         scene: SceneConfig | None = None, target: str | None = None) -> AnatomyPool:
+         scene: SceneConfig | None = None, target: str | None = None,
+         same_wire: bool = False) -> AnatomyPool:
     """Returns the lazily built pool of ``size`` trees with seeds ``seed ... seed + size - 1``.
 
     Args:
@@ -111,12 +119,15 @@ def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = No
             are fitted (:func:`scene_for`). Default: the ``workhorse`` wire.
         target: Aim at this branch end (e.g. ``"D1"``) in every episode instead of drawing
             one; every tree drawn must have it (a left target in a right tree is an error).
+        same_wire: Give every tree the wire for :data:`MAX_INSERTION` of travel instead of
+            fitting each tree's travel to its deepest target (slower; for ``wire_shape``).
     """
     if side not in ("left", "right", "both"):
         raise TaskConfigError(f"task_kwargs side must be 'left', 'right' or 'both', got {side!r}.")
     folder = cache_dir or default_cache_dir()
     fitted = scene_for(scene)
     return AnatomyPool(
-        [functools.partial(build_member, seed + k, folder, side, fitted) for k in range(size)],
+        [functools.partial(build_member, seed + k, folder, side, fitted, same_wire)
+         for k in range(size)],
         target=target,
     )

@@ -38,12 +38,16 @@ def default_cache_dir() -> Path:
     return anatomy.default_cache_dir("random_coronary")
 
 
-def build_member(seed: int, cache_dir: Path, scene: SceneConfig | None = None) -> Anatomy:
+def build_member(seed: int, cache_dir: Path, scene: SceneConfig | None = None,
+                 same_wire: bool = False) -> Anatomy:
     """Generates the pool tree of ``seed``, builds it once (cached on disk) and compiles it.
 
     Generating costs under a second (see :func:`~sim4endor.tasks.anatomy.cached_build` for
     the cache). The wire is not part of the folder: only the compiled scene (``scene``,
-    default :class:`SceneConfig`) depends on it.
+    default :class:`SceneConfig`) depends on it. The driver's travel and the wire's length are
+    fitted to the tree's deepest target (fewer segments, faster) unless ``same_wire``, which
+    keeps ``scene``'s for every tree (for the ``wire_shape`` observation, whose size is the
+    segment count).
     """
     from sim4endor.vessels.build import BuildParams
     from sim4endor.vessels.generators import CoronaryTreeConfig, coronary_tree
@@ -53,18 +57,21 @@ def build_member(seed: int, cache_dir: Path, scene: SceneConfig | None = None) -
     params = BuildParams(wall=WallParams(use_coacd=False))
     folder = anatomy.cached_build(coronary_tree(config, seed=seed), f"coronary_{seed:05d}",
                                   cache_dir, config, params)
-    return compile_anatomy(folder, scene, fit=False)
+    return compile_anatomy(folder, scene, fit="none" if same_wire else "travel")
 
 
 def pool(
-    size: int, seed: int, cache_dir: Path | None = None, scene: SceneConfig | None = None
+    size: int, seed: int, cache_dir: Path | None = None, scene: SceneConfig | None = None,
+    same_wire: bool = False,
 ) -> AnatomyPool:
     """Returns the lazily built pool of ``size`` trees with seeds ``seed ... seed + size - 1``.
 
     ``scene`` (wire, driver, timestep; default :class:`SceneConfig`) is compiled into every
-    member; the cached tree folders do not depend on it.
+    member (see :func:`build_member` for ``same_wire``); the cached tree folders do not
+    depend on it.
     """
     folder = cache_dir or default_cache_dir()
     return AnatomyPool(
-        [functools.partial(build_member, seed + k, folder, scene) for k in range(size)]
+        [functools.partial(build_member, seed + k, folder, scene, same_wire)
+         for k in range(size)]
     )
