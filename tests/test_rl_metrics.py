@@ -86,14 +86,16 @@ def test_summarize_rejects_no_episodes_and_bad_shapes() -> None:
 def test_episode_from_a_scripted_rollout() -> None:
     # Tip moves 1 mm along +x per step for 4 steps, velocity 0.02 m/s; success on the last step.
     steps = 4
-    tips = torch.tensor(_straight(4e-3, steps), dtype=torch.float32)
-    obs = torch.cat([tips, torch.full((steps + 1, 3), 0.02)], dim=1)
+    tips = torch.tensor(_straight(4e-3, steps), dtype=torch.float64)
+    obs = torch.full((steps + 1, 36), 0.02)  # e.g. the generalist set: no absolute position
     distance = torch.tensor([9e-3, 8e-3, 7e-3, 6e-3], dtype=torch.float64)  # after each step
     rollout = TensorDict(
         {
             "observation": obs[:-1],
+            "tip_position": tips[:-1],
             "next": {
                 "observation": obs[1:],
+                "tip_position": tips[1:],
                 "reward": torch.ones(steps, 1),
                 "is_success": torch.tensor([False, False, False, True]),
                 "wall_force": torch.tensor([0.0, 0.2, 0.5, 0.1], dtype=torch.float64),

@@ -11,8 +11,11 @@ from gymnasium import spaces
 
 from sim4endor import _gl, registry
 
-#: Info keys holding numbers (the others: ``failure``, a string naming the failure state).
+#: Info keys holding numbers (the others: ``failure``, a string naming the failure state);
+#: ``tip_position`` is (3,) m, in the reset's info too, so metrics such as the path length
+#: work whatever the observation holds (the ``generalist`` set has no absolute position).
 NUMERIC_INFO_KEYS: tuple[str, ...] = (
+    "tip_position",
     "reward_distance",
     "reward_goal",
     "reward_failure",
@@ -147,7 +150,8 @@ class NavigationEnv(gymnasium.Env[Any, np.ndarray]):
         if seed is not None:
             self.dm_env.task.reseed(seed)
         timestep = self.dm_env.reset()
-        return self._observation(timestep.observation), {}
+        return (self._observation(timestep.observation),
+                {"tip_position": self.dm_env.physics.tip_position()})
 
     def step(
         self, action: np.ndarray

@@ -27,8 +27,9 @@ def make_torchrl_env(
 
     The tensordict holds ``"observation"`` (float32; the gymnasium adapter's state vector,
     default ``[tip_position (m), tip_velocity (m/s)]``), ``"action"`` (2,) in [-1, 1],
-    ``"reward"``, ``"done"``/``"terminated"``/``"truncated"`` and, after each step, the
-    reward terms and diagnostics as float entries (``"reward_distance"``,
+    ``"reward"``, ``"done"``/``"terminated"``/``"truncated"``, ``"tip_position"`` (3,) m
+    (also at reset) and, after each step, the reward terms and diagnostics as float entries
+    (``"reward_distance"``,
     ``"reward_goal"``, ``"reward_failure"``, ``"manifold_distance"``, ``"wall_force"``, ...),
     ``"is_success"`` (bool) and ``"failure_code"`` (int64, see
     :func:`sim4endor.tasks.navigation.failure_code`). It is picklable through its arguments, so
@@ -45,9 +46,11 @@ def make_torchrl_env(
     """
     env = GymWrapper(NavigationEnv(domain, task, task_kwargs, environment_kwargs), device=device)
     dtypes = {"is_success": torch.bool, "failure_code": torch.int64}
+    shapes = {"tip_position": (3,)}
     info_spec = Composite(
         {
-            key: Unbounded(shape=(), dtype=dtypes.get(key, torch.float64), device=device)
+            key: Unbounded(shape=shapes.get(key, ()), dtype=dtypes.get(key, torch.float64),
+                           device=device)
             for key in NUMERIC_INFO_KEYS
         }
     )

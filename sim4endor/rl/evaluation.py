@@ -1,11 +1,12 @@
 """Runs a policy deterministically for a number of episodes and records :class:`Episode` s.
 
 The sim4endor TorchRL environments (:func:`sim4endor.envs.make_torchrl_env`) report, beside
-each step's ``observation`` (whose first three entries are the tip position in m), whether
-the target was reached (``is_success``), the wire–wall contact force (``wall_force``, N) and
-the geodesic distance from the tip to the target (``manifold_distance``, m) and why an episode
-failed (``failure_code``, an index into :data:`sim4endor.tasks.FAILURES`); one step lasts
-the task's control period (``ActionConfig.control_timestep``, 0.05 s by default).
+each step's ``observation``, the tip position (``tip_position``, m, at reset too, whatever the
+observation set), whether the target was reached (``is_success``), the wire–wall contact
+force (``wall_force``, N), the geodesic distance from the tip to the target
+(``manifold_distance``, m) and why an episode failed (``failure_code``, an index into
+:data:`sim4endor.tasks.FAILURES`); one step lasts the task's control period
+(``ActionConfig.control_timestep``, 0.05 s by default).
 :class:`EpisodeKeys` names those entries. An environment that lacks one (e.g. a generic
 control task used in tests) gives neutral values: no success, zero force, zero path lengths.
 """
@@ -43,7 +44,7 @@ class EpisodeKeys:
         failures: the failure reasons ``failure_code`` counts.
     """
 
-    tip_position: str = "observation"
+    tip_position: str = "tip_position"
     tip_slice: tuple[int, int] = (0, 3)
     success: str = "is_success"
     wall_force: str = "wall_force"

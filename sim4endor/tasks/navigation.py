@@ -66,6 +66,7 @@ class StepEvaluation:
         wall_force: Total normal wire–wall contact force (N), for reporting.
         tip_force: Normal force of the tip section on the wall (N), the safety signal.
         lumen_excess: Distance of the tip outside the lumen (m; <= 0 inside).
+        tip_position: The tip (m, vessel frame), for metrics whatever the observation holds.
         success: Whether the tip reached the target.
         failure: Failure reason (one of :data:`FAILURES`) or ``""``.
         terms: The reward terms of this step.
@@ -76,6 +77,7 @@ class StepEvaluation:
     wall_force: float
     tip_force: float
     lumen_excess: float
+    tip_position: FloatArray
     success: bool
     failure: str
     terms: rewards.RewardTerms
@@ -266,11 +268,11 @@ class NavigationTask(base.Task):
         term = self.config.termination
         # No NaN check needed here: MuJoCo resets a non-finite state inside mj_step and warns,
         # and dm_control turns the warning into the PhysicsError that calls mark_unstable.
+        tip = physics.tip_position()
         if unstable:
             distance = manifold = self._d_last
             force, tip_force, excess, push = math.inf, math.inf, math.inf, math.inf
         else:
-            tip = physics.tip_position()
             to_target = self.manifold_distance()
             proj = to_target.project(tip)  # one projection serves every term
             manifold = to_target.at(proj)
@@ -298,7 +300,7 @@ class NavigationTask(base.Task):
         )
         self._d_last = distance
         return StepEvaluation(
-            distance, manifold, force, tip_force, excess, success, failure, terms
+            distance, manifold, force, tip_force, excess, tip, success, failure, terms
         )
 
     def get_reward(self, physics: control.Physics) -> float:
@@ -315,10 +317,11 @@ class NavigationTask(base.Task):
             raise RuntimeError("The task has not evaluated a step yet; call after_step first.")
         return self._evaluation
 
-    def step_info(self) -> dict[str, float | bool | str]:
+    def step_info(self) -> dict[str, float | bool | str | FloatArray]:
         """Returns the reward terms and diagnostics of the last step (for ``info``)."""
         ev = self._current()
         return {
+            "tip_position": ev.tip_position,
             "reward_distance": ev.terms.distance,
             "reward_goal": ev.terms.goal,
             "reward_failure": ev.terms.failure,
