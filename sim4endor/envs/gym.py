@@ -49,9 +49,12 @@ class NavigationEnv(gymnasium.Env[Any, np.ndarray]):
 
     Opt-in entries (``task_kwargs={"observations": (...)}``) follow in the order given:
     ``target_position`` (3, m), ``wire_shape`` (3·(N+1), m), ``last_action`` (2),
-    ``insertion`` (1, m), ``rotation`` (1, rad), ``manifold_distance`` (1, m). With
-    ``"pixels"`` the space is a ``Dict`` of ``"state"`` (the Box above) and ``"pixels"``
-    (``Box(uint8, (H, W, 1))``, a fluoroscopy-like top-down projection).
+    ``insertion`` (1, m), ``rotation`` (1, rad), ``manifold_distance`` (1, m), and the
+    tip-frame entries (``path_ahead``, ``axis_offset``, ...; :mod:`sim4endor.suite`).
+    ``task_kwargs={"observations": "generalist"}`` replaces the whole state by that named set
+    (36 numbers, none of them an absolute position). With ``"pixels"`` the space is a
+    ``Dict`` of ``"state"`` (the Box above) and ``"pixels"`` (``Box(uint8, (H, W, 1))``, a
+    fluoroscopy-like top-down projection). The tip position is always in ``info``.
 
     **Action**: ``Box(-1, 1, (2,), float32)``:
 
