@@ -27,7 +27,9 @@ RAY = ("collector.backend=ray", "env.num_envs=2")
 #: Batches of 200 frames: each of two workers then ends a 200-step Pendulum episode by the
 #: second batch, as one local env does, so both runs log the same scalars.
 TWO_BATCHES = (
-    "collector.total_frames=400", "collector.frames_per_batch=200", "collector.init_random_frames=200"
+    "collector.total_frames=400",
+    "collector.frames_per_batch=200",
+    "collector.init_random_frames=200",
 )
 
 
