@@ -33,6 +33,11 @@ _NAMED_ADDRESSES = ("auto", "local")
 #: A head node that accepts no TCP connection in this time counts as unreachable; ray.init
 #: would instead retry for minutes, logging a warning every few seconds.
 _PROBE_TIMEOUT_S = 5.0
+#: The fix named by every error about reaching a cluster.
+_START_A_CLUSTER = (
+    "Start one with `ray start --head` and pass the address it prints with --ray-address "
+    "(or RAY_ADDRESS), or leave both unset to start Ray on this machine."
+)
 
 
 class RayBackendError(Sim4EndoRError):
@@ -74,18 +79,13 @@ def connected(address: str | None = None) -> Iterator[ModuleType]:
         _probe(address)
     try:
         ray.init(address=address)
-    except ConnectionError as exc:  # e.g. `auto` with no cluster on this machine
-        raise RayBackendError(f"{exc} {_START_A_CLUSTER}") from exc
+    # e.g. `auto` with no cluster on this machine, or a port where something else listens
+    except ConnectionError as exc:
+        raise RayBackendError(f"{str(exc).rstrip('.')}. {_START_A_CLUSTER}") from exc
     try:
         yield ray
     finally:
         ray.shutdown()
-
-
-_START_A_CLUSTER = (
-    "Start one with `ray start --head` and pass the address it prints with --ray-address "
-    "(or RAY_ADDRESS), or leave both unset to start Ray on this machine."
-)
 
 
 def _probe(address: str) -> None:
