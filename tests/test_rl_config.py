@@ -62,6 +62,14 @@ def test_bad_overrides_name_the_field(override: str, message: str) -> None:
         apply_overrides(default_config("ddpg"), [override])
 
 
+def test_the_ray_backend_needs_batches_that_split_evenly_over_its_workers() -> None:
+    assert default_config("sac").collector.backend == "local"
+    ray = ["collector.backend=ray", "collector.frames_per_batch=1000"]
+    assert apply_overrides(default_config("sac"), [*ray, "env.num_envs=4"]).env.num_envs == 4
+    with pytest.raises(ConfigError, match=r"frames_per_batch=1000 evenly over env.num_envs=3"):
+        apply_overrides(default_config("sac"), [*ray, "env.num_envs=3"])
+
+
 def test_unknown_algorithm_lists_the_valid_ones() -> None:
     with pytest.raises(ConfigError, match="ddpg"):
         default_config("td3")

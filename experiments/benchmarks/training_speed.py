@@ -2,10 +2,12 @@
 gradient steps/s, and the extrapolated wall-clock of one 100k-step run with the paper's
 settings (one torch thread; ``--envs K`` steps K environments in K worker processes, as
 ``sim4endor train --envs K`` does, so ``--envs 2`` is a run given both cores of a 2-core
-machine). Periodic evaluation is not included in the extrapolation.
+machine; with ``--backend ray`` the K environments are Ray actors, as with ``sim4endor train
+--backend ray``, on the cluster RAY_ADDRESS names or a Ray instance started here). Periodic
+evaluation is not included in the extrapolation.
 
     python experiments/benchmarks/training_speed.py [--domain simplified_phantom]
-        [--task task_a] [--envs 1] [--frames 1000] [--updates 300] [--json]
+        [--task task_a] [--envs 1] [--backend local] [--frames 1000] [--updates 300] [--json]
 
 Timings taken while other jobs share the CPU are pessimistic; the script prints the load.
 """
@@ -13,6 +15,7 @@ Timings taken while other jobs share the CPU are pessimistic; the script prints 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import os
@@ -21,6 +24,7 @@ import time
 import torch
 from torchrl.envs import ExplorationType, set_exploration_type
 
+from sim4endor.rl import ray_backend
 from sim4endor.rl.algorithms import build_agent
 from sim4endor.rl.config import ALGORITHMS, TrainConfig, default_config
 from sim4endor.rl.envs import env_factory
@@ -82,6 +86,8 @@ def main() -> None:
     parser.add_argument("--domain", default="simplified_phantom")
     parser.add_argument("--task", default="task_a")
     parser.add_argument("--envs", type=int, default=1, help="environment worker processes")
+    parser.add_argument("--backend", choices=("local", "ray"), default="local",
+                        help="where the environment workers step (collector.backend)")
     parser.add_argument("--frames", type=int, default=1000, help="env steps timed")
     parser.add_argument("--updates", type=int, default=300, help="gradient steps timed")
     parser.add_argument("--json", action="store_true")
@@ -93,10 +99,15 @@ def main() -> None:
         base.env, domain=args.domain, task=args.task, num_envs=args.envs
     )
     env = env_factory(env_config)(0)
-    env_rate = env_steps_per_s(dataclasses.replace(base, env=env_config), env, args.frames)
+    collector_config = dataclasses.replace(base.collector, backend=args.backend)
+    timed = dataclasses.replace(base, env=env_config, collector=collector_config)
+    ray = ray_backend.connected() if args.backend == "ray" else contextlib.nullcontext()
+    with ray:
+        env_rate = env_steps_per_s(timed, env, args.frames)
     report = {
         "load_average_1min": os.getloadavg()[0],
         "envs": args.envs,
+        "backend": args.backend,
         "env_steps_per_s": round(env_rate, 1),
     }
     for algorithm in ALGORITHMS:

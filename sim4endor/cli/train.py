@@ -30,6 +30,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=arg_types.seed, help="random seed (default: 0)")
     parser.add_argument("--envs", type=arg_types.positive_int,
                         help="parallel environments (default: 1)")
+    parser.add_argument(
+        "--backend", choices=("local", "ray"),
+        help="where the --envs environments step: worker processes here (local, the default) "
+             "or Ray actors on a cluster, learning in this process (ray)",
+    )
+    parser.add_argument(
+        "--ray-address", metavar="HOST:PORT",
+        help="--backend ray: the cluster's head node, as `ray start --head` prints it "
+             "(default: RAY_ADDRESS, else Ray on this machine)",
+    )
     arg_types.add_task_arguments(parser, evaluation_split=True)
     parser.add_argument("--config", type=Path, help="YAML config file (e.g. experiments/sac/)")
     parser.add_argument(
@@ -57,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
         "collector.total_frames": args.frames,
         "seed": args.seed,
         "env.num_envs": args.envs,
+        "collector.backend": args.backend,
     }
     overrides = [f"{key}={value}" for key, value in flags.items() if value is not None]
     overrides += arg_types.env_overrides(arg_types.task_arguments(args))
@@ -71,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
             f"{source} configures {config.algorithm}, not {args.algorithm}: run `sim4endor "
             f"train {config.algorithm} ...` or pass a {args.algorithm} configuration."
         )
-    metrics = train(config, args.out, progress=not args.no_progress)
+    metrics = train(config, args.out, progress=not args.no_progress, ray_address=args.ray_address)
     print(json.dumps(metrics))  # noqa: T201
     return 0
 

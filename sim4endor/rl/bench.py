@@ -28,7 +28,7 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 
 from sim4endor._atomic import atomic_write_text
 from sim4endor.errors import Sim4EndoRError
-from sim4endor.rl import checkpoint
+from sim4endor.rl import checkpoint, ray_backend
 from sim4endor.rl.config import ALGORITHMS, TrainConfig, apply_overrides, default_config
 from sim4endor.rl.envs import EnvFactory
 from sim4endor.rl.metrics import describe
@@ -199,7 +199,8 @@ def run_bench(
         bench: the grid.
         out_dir: output folder; rerunning skips finished runs and resumes interrupted ones.
         backend: ``local`` (process pool of ``bench.workers``; 1 = in this process) or ``ray``
-            (one task per run on the cluster ``ray.init()`` connects to, e.g. RAY_ADDRESS).
+            (one task per run on the cluster RAY_ADDRESS names, else on a Ray instance
+            started on this machine; :func:`sim4endor.rl.ray_backend.connected`).
         make_env: ``seed -> env`` factory (picklable); defaults to each run's sim4endor task.
         progress: show a progress bar of the grid's runs (and, in this process, of each run).
 
@@ -291,24 +292,18 @@ class _GridProgress:
 def _run_ray(
     todo: Sequence[tuple[TrainConfig, Path]], make_env: EnvFactory | None, tracker: _GridProgress
 ) -> None:
-    try:
-        import ray
-    except ImportError as exc:
-        raise Sim4EndoRError(
-            "--backend ray needs Ray: pip install 'sim4endor[ray]' (or use the local backend)."
-        ) from exc
-    ray.init(ignore_reinit_error=True)
-    remote = ray.remote(_train_one)
-    # A run steps env.num_envs environment processes (one in-process): it reserves that many
-    # CPUs, so the scheduler never packs more simulations on a node than it has cores.
-    pending = {
-        remote.options(num_cpus=config.env.num_envs).remote(config, run_dir, make_env, False):
-            run_dir
-        for config, run_dir in todo
-    }
-    while pending:
-        ready, _ = ray.wait(list(pending), num_returns=1)
-        tracker.finished(pending.pop(ready[0]), ray.get(ready[0]))
+    with ray_backend.connected() as ray:
+        remote = ray.remote(_train_one)
+        # A run steps env.num_envs environment processes (one in-process): it reserves that
+        # many CPUs, so the scheduler never packs more simulations on a node than it has cores.
+        pending = {
+            remote.options(num_cpus=config.env.num_envs).remote(config, run_dir, make_env, False):
+                run_dir
+            for config, run_dir in todo
+        }
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            tracker.finished(pending.pop(ready[0]), ray.get(ready[0]))
 
 
 def write_report(

@@ -24,6 +24,8 @@ from sim4endor.errors import Sim4EndoRError
 
 Algorithm = Literal["ddpg", "sac", "ppo"]
 ALGORITHMS: tuple[str, ...] = ("ddpg", "sac", "ppo")
+#: Where the environment workers of a run step: in this machine's processes, or on Ray.
+CollectorBackend = Literal["local", "ray"]
 
 
 class ConfigError(Sim4EndoRError, ValueError):
@@ -51,7 +53,8 @@ class EnvConfig:
         domain: suite domain, e.g. ``simplified_phantom``.
         task: task name within the domain, e.g. ``task_a``.
         reward: distance used by the progress reward: geodesic (``manifold``) or ``euclidean``.
-        num_envs: environments stepped per collector (>1 uses one worker process each).
+        num_envs: environments stepped per collector (>1 uses one worker process each;
+            with ``collector.backend=ray``, one Ray actor each).
         extra_observations: task observation entries appended to the paper's state
             ``[tip_position, tip_velocity]``, e.g. ``["rotation"]`` (rad): the paper's state
             cannot see the accumulated wire rotation, whose limit ends episodes. Add one
@@ -112,11 +115,16 @@ class CollectorConfig:
         total_frames: environment steps of the whole run (paper: 100k).
         frames_per_batch: steps collected between two rounds of optimisation.
         init_random_frames: uniformly random steps before learning starts (off-policy only).
+        backend: ``local``: one environment in the learner's process, or ``env.num_envs``
+            worker processes; ``ray``: ``env.num_envs`` Ray actors, one environment and one
+            CPU each, on the cluster the run connects to, while this process learns and
+            sends them the policy weights after each optimisation phase.
     """
 
     total_frames: int = 100_000
     frames_per_batch: int = 1_000
     init_random_frames: int = 2_000
+    backend: CollectorBackend = "local"
 
     def __post_init__(self) -> None:
         _check(self, "collector", positive=("total_frames", "frames_per_batch"),
@@ -300,6 +308,14 @@ class TrainConfig:
                non_negative=("seed", "checkpoint_interval_frames"))
         if self.seed > MAX_SEED:
             raise ConfigError(f"seed must be at most {MAX_SEED}, got {self.seed}.")
+        # Ray's collector splits each batch evenly over its actors and refuses a remainder
+        # (the local one rounds up), so the mismatch is named here, before a run starts.
+        frames, envs = self.collector.frames_per_batch, self.env.num_envs
+        if self.collector.backend == "ray" and frames % envs:
+            raise ConfigError(
+                f"collector.backend=ray splits collector.frames_per_batch={frames} evenly over "
+                f"env.num_envs={envs} workers; choose a multiple of {envs}."
+            )
 
 
 def default_config(algorithm: str) -> TrainConfig:

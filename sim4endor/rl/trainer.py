@@ -17,6 +17,7 @@ Run folder layout::
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import logging
@@ -26,7 +27,7 @@ from typing import Any
 
 import torch
 from tensordict import TensorDictBase
-from torchrl.collectors import Collector, MultiSyncCollector
+from torchrl.collectors import BaseCollector, Collector, MultiSyncCollector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.record.loggers import Logger
 from tqdm.auto import tqdm
@@ -34,7 +35,7 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 
 from sim4endor._atomic import atomic_write_text
 from sim4endor.errors import Sim4EndoRError
-from sim4endor.rl import checkpoint
+from sim4endor.rl import checkpoint, ray_backend
 from sim4endor.rl.algorithms import Agent, build_agent
 from sim4endor.rl.config import TrainConfig, load_config, save_config, to_dict
 from sim4endor.rl.envs import EnvFactory, env_factory
@@ -74,6 +75,7 @@ def train(
     *,
     make_env: EnvFactory | None = None,
     progress: bool = True,
+    ray_address: str | None = None,
 ) -> dict[str, Any]:
     """Trains ``config`` into ``run_dir``, resuming from its checkpoint if it has one.
 
@@ -85,11 +87,35 @@ def train(
             defaults to the sim4endor task of ``config.env`` (evaluated on its evaluation
             split, :attr:`~sim4endor.rl.config.EnvConfig.eval_pool_seed`).
         progress: show a tqdm progress bar.
+        ray_address: ``collector.backend=ray``: the cluster to join (see
+            :func:`sim4endor.rl.ray_backend.connected`; ``None``: ``RAY_ADDRESS``, else Ray
+            on this machine).
 
     Returns:
         The final evaluation metrics (also written to ``run_dir/evaluation.json``).
     """
-    run_dir = Path(run_dir)
+    # Joined before anything is built or written: a missing Ray or an unreachable cluster
+    # must fail at once and leave no run folder behind.
+    with _collector_backend(config, ray_address):
+        return _train(config, Path(run_dir), make_env, progress)
+
+
+def _collector_backend(
+    config: TrainConfig, ray_address: str | None
+) -> contextlib.AbstractContextManager[Any]:
+    if config.collector.backend == "ray":
+        return ray_backend.connected(ray_address)
+    if ray_address is not None:
+        raise Sim4EndoRError(
+            f"A Ray address ({ray_address}) is given but collector.backend is local; "
+            "add --backend ray (collector.backend=ray) or drop the address."
+        )
+    return contextlib.nullcontext()
+
+
+def _train(
+    config: TrainConfig, run_dir: Path, make_env: EnvFactory | None, progress: bool
+) -> dict[str, Any]:
     make_eval_env = make_env or env_factory(config.env, evaluation=True)
     make_env = make_env or env_factory(config.env)
     _check_resumable(run_dir, config)
@@ -170,25 +196,28 @@ def _logger(config: TrainConfig, run_dir: Path) -> Logger | None:
 
 def make_collector(
     config: TrainConfig, make_env: EnvFactory, agent: Agent, frames_done: int
-) -> Collector | MultiSyncCollector:
-    """Returns the collector of the frames still to collect (one env, or K worker processes)."""
+) -> BaseCollector:
+    """Returns the collector of the frames still to collect: one env, K worker processes, or
+    (``collector.backend=ray``) K Ray actors."""
     collector_cfg = config.collector
     remaining = max(collector_cfg.total_frames - frames_done, 0)
-    kwargs: dict[str, Any] = {
+    budget = {
         "frames_per_batch": collector_cfg.frames_per_batch,
         "total_frames": remaining,
         "init_random_frames": max(collector_cfg.init_random_frames - frames_done, 0),
-        # Our policies need no env transforms (e.g. InitTracker); say so, silencing a warning.
-        "auto_register_policy_transforms": False,
     }
     # Offsetting the seed by the frames already done keeps a resumed run deterministic.
     seed = config.seed + frames_done
     create = [_SeededEnv(make_env, seed + i) for i in range(config.env.num_envs)]
-    collector: Collector | MultiSyncCollector
-    if config.env.num_envs == 1:
-        collector = Collector(create[0], agent.exploration_policy, **kwargs)
+    # Our policies need no env transforms (e.g. InitTracker); say so, silencing a warning.
+    local: dict[str, Any] = {**budget, "auto_register_policy_transforms": False}
+    collector: BaseCollector
+    if collector_cfg.backend == "ray":
+        collector = ray_backend.ray_collector(create, agent.exploration_policy, **budget)
+    elif config.env.num_envs == 1:
+        collector = Collector(create[0], agent.exploration_policy, **local)
     else:
-        collector = MultiSyncCollector(create, agent.exploration_policy, **kwargs)
+        collector = MultiSyncCollector(create, agent.exploration_policy, **local)
     collector.set_seed(seed)
     return collector
 
