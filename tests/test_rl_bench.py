@@ -181,12 +181,12 @@ def test_a_grid_whose_every_run_fails_says_so(tmp_path: Path) -> None:
 
 
 def test_bench_on_a_local_ray_cluster(tmp_path: Path) -> None:
-    # Ray's core is in the dev extra: a local one-CPU instance on loopback, ~11 s here.
+    # Ray's core is in the dev extra: a local one-CPU instance, a two-run grid (two seeds).
     import ray
     bench = BenchConfig(
         rows=(("sac", "manifold"),),
         tasks=(("simplified_phantom", "task_a"),),
-        seeds=(0,),
+        seeds=(0, 1),
         overrides=TINY,
     )
     # Ray workers import the env factory from this folder.
@@ -202,4 +202,4 @@ def test_bench_on_a_local_ray_cluster(tmp_path: Path) -> None:
         run_bench(bench, tmp_path, backend="ray", make_env=pendulum_env)
     finally:
         ray.shutdown()
-    assert "SAC (manifold distance reward) | 2 (1)" in (tmp_path / "table.md").read_text()
+    assert "SAC (manifold distance reward) | 4 (2)" in (tmp_path / "table.md").read_text()
