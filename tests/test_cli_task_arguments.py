@@ -162,3 +162,36 @@ def test_evaluate_on_another_task_prints_but_keeps_the_runs_evaluation(
     assert status == 0, err
     assert json.loads(out)["trials"] == 1
     assert (run_dir / "evaluation.json").read_text() == saved
+
+
+def test_training_on_the_generalist_observation_set(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--observations generalist`` trains, evaluates (path length from the info's tip
+    position) and exports with every tip-frame entry named in the policy contract."""
+    run = tmp_path / "run"
+    budget = ["collector.total_frames=60", "collector.frames_per_batch=30",
+              "collector.init_random_frames=30", "optim.updates_per_batch=4",
+              "network.hidden_sizes=[16]", "network.observation_scale=[]", "eval.trials=1",
+              "eval.max_steps=10", "eval.interval_frames=60", "logger.backend=csv"]
+    args = ["train", "sac", "--observations", "generalist", "--out", str(run), "--no-progress"]
+    for override in budget:
+        args += ["--set", override]
+    status, _, err = _cli(args, capsys)
+    assert status == 0, err
+    evaluation = json.loads((run / "evaluation.json").read_text())
+    assert evaluation["mean_path_length_m"] > 0  # tips read from info, not the observation
+    status, _, err = _cli(["export", str(run), "--out", str(tmp_path / "policy")], capsys)
+    assert status == 0, err
+    contract = json.loads((tmp_path / "policy" / "policy.json").read_text())
+    entries = {e["name"]: e for e in contract["observation"]["entries"]}
+    assert next(iter(entries)) == "path_ahead" and entries["path_ahead"]["slice"] == [0, 24]
+    assert contract["observation"]["shape"][-1] == 36
+    assert contract["environment"]["task_kwargs"]["observations"] == "generalist"
+
+
+def test_extra_observations_extend_the_paper_set_only() -> None:
+    with pytest.raises(ConfigError, match="extend the 'paper' set only"):
+        EnvConfig(observations="generalist", extra_observations=("rotation",))
+    with pytest.raises(ConfigError, match=r"env\.observations must be one of"):
+        EnvConfig(observations="everything")

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from sim4endor.rl.config import MAX_SEED, EnvConfig
+from sim4endor.tasks.config import OBSERVATION_SETS
 
 
 def positive_int(text: str) -> int:
@@ -54,6 +55,9 @@ def add_task_arguments(parser: argparse.ArgumentParser, *, evaluation_split: boo
                        help="generated trees: seed of the first training tree")
     group.add_argument("--pool-size", type=positive_int, metavar="N",
                        help="generated trees: number of training trees")
+    group.add_argument("--observations", choices=sorted(OBSERVATION_SETS), metavar="SET",
+                       help="observation set: paper (default; tip position and velocity) or "
+                            "generalist (tip-frame entries, for any anatomy)")
     if evaluation_split:
         group.add_argument("--eval-pool-seed", type=seed, metavar="SEED",
                            help="generated trees: seed of the first evaluation tree (held out "
@@ -66,7 +70,8 @@ def task_arguments(args: argparse.Namespace) -> dict[str, Any]:
     A vessel given as an existing folder is stored as an absolute path, so a run's saved
     config still finds it from another working directory.
     """
-    names = ("vessel", "target", "wire", "pool_seed", "pool_size", "eval_pool_seed")
+    names = ("vessel", "target", "wire", "pool_seed", "pool_size", "eval_pool_seed",
+             "observations")
     given = {name: getattr(args, name, None) for name in names}
     if given["vessel"] is not None and Path(given["vessel"]).exists():
         given["vessel"] = str(Path(given["vessel"]).resolve())

@@ -55,10 +55,14 @@ class EnvConfig:
         reward: distance used by the progress reward: geodesic (``manifold``) or ``euclidean``.
         num_envs: environments stepped per collector (>1 uses one worker process each;
             with ``collector.backend=ray``, one Ray actor each).
-        extra_observations: task observation entries appended to the paper's state
-            ``[tip_position, tip_velocity]``, e.g. ``["rotation"]`` (rad): the paper's state
-            cannot see the accumulated wire rotation, whose limit ends episodes. Add one
-            ``network.observation_scale`` factor per extra entry.
+        observations: the observation set (:data:`sim4endor.tasks.OBSERVATION_SETS`):
+            ``paper`` (the paper's state ``[tip_position, tip_velocity]``) or ``generalist``
+            (tip-frame entries that name no patient coordinates, for training across
+            anatomies; give ``network.observation_scale`` one factor per number, or ``[]``).
+        extra_observations: with the ``paper`` set, task observation entries appended to it,
+            e.g. ``["rotation"]`` (rad): the paper's state cannot see the accumulated wire
+            rotation, whose limit ends episodes. Add one ``network.observation_scale`` factor
+            per extra entry.
         vessel: domain ``vessel``: a vessel name or the folder ``sim4endor vessel build``
             wrote (stored as an absolute path, so the run can be evaluated from anywhere).
         target: domain ``vessel``: the target label, e.g. ``T1``.
@@ -75,6 +79,7 @@ class EnvConfig:
     task: str = "task_a"
     reward: Literal["manifold", "euclidean"] = "manifold"
     num_envs: int = 1
+    observations: str = "paper"
     extra_observations: tuple[str, ...] = ()
     vessel: str | None = None
     target: str | None = None
@@ -86,9 +91,24 @@ class EnvConfig:
     def __post_init__(self) -> None:
         _check(self, "env", positive=("num_envs", "pool_size"),
                non_negative=("pool_seed", "eval_pool_seed"))
+        from sim4endor.tasks.config import OBSERVATION_SETS
+
+        if self.observations not in OBSERVATION_SETS:
+            raise ConfigError(f"env.observations must be one of {sorted(OBSERVATION_SETS)}, "
+                              f"got {self.observations!r}.")
+        if self.observations != "paper" and self.extra_observations:
+            raise ConfigError("env.extra_observations extend the 'paper' set only; the "
+                              f"{self.observations!r} set is used as it is.")
         if self.eval_pool_seed is not None and self.pool_size is None:
             raise ConfigError("env.eval_pool_seed needs env.pool_size (the training trees' "
                               "count), so the two splits can be told apart.")
+
+    def observation_names(self) -> tuple[str, ...]:
+        """The task's observation entries, in the order the observation vector holds them."""
+        from sim4endor.tasks.config import OBSERVATION_SETS
+
+        names = OBSERVATION_SETS[self.observations] + self.extra_observations
+        return tuple(dict.fromkeys(names))
 
     def task_kwargs(self, seed: int, *, evaluation: bool = False) -> dict[str, Any]:
         """Returns the ``suite.load`` task_kwargs of this environment, seeded with ``seed``.
@@ -97,8 +117,10 @@ class EnvConfig:
             seed: The task's random seed.
             evaluation: Use the evaluation split of generated trees (``eval_pool_seed``).
         """
+        observations = self.extra_observations if self.observations == "paper" \
+            else self.observations
         kwargs: dict[str, Any] = {"random": seed, "reward": self.reward,
-                                  "observations": self.extra_observations}
+                                  "observations": observations}
         pool_seed = self.eval_pool_seed if evaluation and self.eval_pool_seed is not None \
             else self.pool_seed
         given = {"vessel": self.vessel, "target": self.target, "wire": self.wire,

@@ -20,9 +20,10 @@ EnvFactory = Callable[[int], EnvBase]
 def sim4endor_env(config: EnvConfig, seed: int, *, evaluation: bool = False) -> EnvBase:
     """Returns the TorchRL env of the sim4endor task ``config`` names (default action scaling).
 
-    Its ``observation`` is ``[tip_position (m), tip_velocity (m/s), *extra_observations]``
-    and each step reports the reward terms and diagnostics (``is_success``, ``wall_force``,
-    ...) beside it.
+    Its ``observation`` is the config's observation set (the paper's ``[tip_position (m),
+    tip_velocity (m/s)]`` by default, then any ``extra_observations``) and each step reports
+    the tip position, the reward terms and diagnostics (``is_success``, ``wall_force``, ...)
+    beside it.
 
     Args:
         config: Domain, task and task arguments.

@@ -154,12 +154,11 @@ def policy_contract(config: TrainConfig, obs_dim: int) -> dict[str, Any]:
     The observation scale factors are listed for reference only: they are inside the network,
     which takes the observation in SI units.
     """
-    from sim4endor.tasks.config import DEFAULT_OBSERVATIONS, ActionConfig
+    from sim4endor.tasks.config import ActionConfig
 
     # Training never changes the task's action settings (EnvConfig has none): the defaults.
     action = ActionConfig()
-    names = tuple(dict.fromkeys(DEFAULT_OBSERVATIONS + config.env.extra_observations))
-    entries = _observation_layout(names, obs_dim)
+    entries = _observation_layout(config.env.observation_names(), obs_dim)
     return {
         "format": "sim4endor-policy/1",
         "algorithm": config.algorithm,
@@ -168,7 +167,8 @@ def policy_contract(config: TrainConfig, obs_dim: int) -> dict[str, Any]:
             "task": config.env.task,
             "task_kwargs": config.env.task_kwargs(config.seed),
             "frame": "the vessel model's frame (for a built vessel folder: its mesh's "
-                     "coordinates converted to metres)",
+                     "coordinates converted to metres); 'tip frame' entries are in the body "
+                     "frame of the wire's distal segment",
         },
         "observation": {
             "name": "observation", "dtype": "float32", "shape": ["batch (optional)", obs_dim],
