@@ -172,7 +172,7 @@ def test_training_on_the_generalist_observation_set(
     run = tmp_path / "run"
     budget = ["collector.total_frames=60", "collector.frames_per_batch=30",
               "collector.init_random_frames=30", "optim.updates_per_batch=4",
-              "network.hidden_sizes=[16]", "network.observation_scale=[]", "eval.trials=1",
+              "network.hidden_sizes=[16]", "eval.trials=1",
               "eval.max_steps=10", "eval.interval_frames=60", "logger.backend=csv"]
     args = ["train", "sac", "--observations", "generalist", "--out", str(run), "--no-progress"]
     for override in budget:
@@ -187,6 +187,9 @@ def test_training_on_the_generalist_observation_set(
     entries = {e["name"]: e for e in contract["observation"]["entries"]}
     assert next(iter(entries)) == "path_ahead" and entries["path_ahead"]["slice"] == [0, 24]
     assert contract["observation"]["shape"][-1] == 36
+    # The default input factors follow the set: one per number, the route ahead ×50.
+    assert contract["observation"]["scale_inside_network"][:24] == [50.0] * 24
+    assert len(contract["observation"]["scale_inside_network"]) == 36
     assert contract["environment"]["task_kwargs"]["observations"] == "generalist"
 
 

@@ -86,7 +86,8 @@ def build_agent(config: TrainConfig, observation_spec: Composite, action_spec: T
     """Returns the :class:`Agent` of ``config.algorithm`` for an environment's specs."""
     obs_dim = observation_dim(observation_spec)
     action_dim = int(action_spec.shape[-1])
-    net, optim = config.network, config.optim
+    net = dataclasses.replace(config.network, observation_scale=config.observation_scale())
+    optim = config.optim
     if config.algorithm == "ddpg":
         actor = networks.deterministic_actor(obs_dim, action_spec, net)
         critic = networks.action_value(obs_dim, action_dim, net)

@@ -41,6 +41,36 @@ def _check(config: object, section: str, **rules: tuple[str, ...]) -> None:
     require(config, section, ConfigError, **rules)
 
 
+#: Factor per observation entry that brings its typical magnitude to O(1) (the network's
+#: default input scaling): positions over ~0.05-0.1 m (×20), speeds up to 0.03 m/s (×30),
+#: the route ahead up to 20 mm (×50), radii of ~2 mm (×500), tip forces up to the 0.6-1 N
+#: failure (×2), wall forces of a few N (×0.5), rotation within ±10 turns (×0.02).
+OBSERVATION_SCALES: dict[str, float] = {
+    "tip_position": 20.0, "tip_velocity": 30.0, "target_position": 20.0, "wire_shape": 20.0,
+    "last_action": 1.0, "insertion": 10.0, "rotation": 0.02, "manifold_distance": 10.0,
+    "path_ahead": 50.0, "axis_offset": 1.0, "lumen_radius": 500.0,
+    "tip_velocity_local": 30.0, "tip_force": 2.0, "wall_force": 0.5,
+}
+
+
+def default_observation_scale(env: EnvConfig) -> tuple[float, ...]:
+    """One factor per observation number: each entry's :data:`OBSERVATION_SCALES` factor,
+    repeated over its size (``[20, 20, 20, 30, 30, 30]`` for the paper's state)."""
+    from sim4endor.tasks.config import OBSERVATION_UNITS
+
+    factors: list[float] = []
+    for name in env.observation_names():
+        size = OBSERVATION_UNITS[name][1]
+        if size is None or name not in OBSERVATION_SCALES:
+            raise ConfigError(
+                f"env observation {name!r} has no default network.observation_scale factor "
+                "(its size depends on the task); give network.observation_scale explicitly "
+                "(one factor per number) or [] for none."
+            )
+        factors += [OBSERVATION_SCALES[name]] * size
+    return tuple(factors)
+
+
 @dataclasses.dataclass(frozen=True)
 class EnvConfig:
     """Which environment to train on, with the task arguments of its domain.
@@ -58,7 +88,7 @@ class EnvConfig:
         observations: the observation set (:data:`sim4endor.tasks.OBSERVATION_SETS`):
             ``paper`` (the paper's state ``[tip_position, tip_velocity]``) or ``generalist``
             (tip-frame entries that name no patient coordinates, for training across
-            anatomies; give ``network.observation_scale`` one factor per number, or ``[]``).
+            anatomies).
         extra_observations: with the ``paper`` set, task observation entries appended to it,
             e.g. ``["rotation"]`` (rad): the paper's state cannot see the accumulated wire
             rotation, whose limit ends episodes. Add one ``network.observation_scale`` factor
@@ -199,16 +229,18 @@ class NetworkConfig:
     Attributes:
         hidden_sizes: width of each hidden layer.
         activation: ``relu`` or ``tanh``.
-        observation_scale: fixed factors multiplying the observation before the first layer
-            (empty: none). The tasks' state is in SI units, so raw inputs are ~1e-2; the
-            defaults bring the tip position (m, phantoms ~0.1 m across) and the tip velocity
-            (m/s, top insertion speed 0.03 m/s) to O(1): ×20 and ×30. The scaling lives inside
-            the networks, so an exported policy still takes SI inputs.
+        observation_scale: fixed factors multiplying the observation before the first layer,
+            one per number (empty: none; ``None``: each entry's factor of
+            :data:`OBSERVATION_SCALES`, see :meth:`TrainConfig.observation_scale`). The tasks' state
+            is in SI units, so raw inputs are ~1e-2; the factors bring them to O(1), e.g. the
+            tip position (m, phantoms ~0.1 m across) ×20 and the tip velocity (m/s, top
+            insertion speed 0.03 m/s) ×30. The scaling lives inside the networks, so an
+            exported policy still takes SI inputs.
     """
 
     hidden_sizes: tuple[int, ...] = (256, 256)
     activation: Literal["relu", "tanh"] = "relu"
-    observation_scale: tuple[float, ...] = (20.0, 20.0, 20.0, 30.0, 30.0, 30.0)
+    observation_scale: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         _check(self, "network", positive=("hidden_sizes", "observation_scale"))
@@ -330,6 +362,7 @@ class TrainConfig:
                non_negative=("seed", "checkpoint_interval_frames"))
         if self.seed > MAX_SEED:
             raise ConfigError(f"seed must be at most {MAX_SEED}, got {self.seed}.")
+        self.observation_scale()  # an entry without a default factor is named now
         # Ray's collector splits each batch evenly over its actors and refuses a remainder
         # (the local one rounds up), so the mismatch is named here, before a run starts.
         frames, envs = self.collector.frames_per_batch, self.env.num_envs
@@ -338,6 +371,12 @@ class TrainConfig:
                 f"collector.backend=ray splits collector.frames_per_batch={frames} evenly over "
                 f"env.num_envs={envs} workers; choose a multiple of {envs}."
             )
+
+    def observation_scale(self) -> tuple[float, ...]:
+        """The network's input factors: ``network.observation_scale``, or when it is ``None``
+        the default factor of each observation entry (:func:`default_observation_scale`)."""
+        given = self.network.observation_scale
+        return default_observation_scale(self.env) if given is None else given
 
 
 def default_config(algorithm: str) -> TrainConfig:

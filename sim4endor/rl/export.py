@@ -173,7 +173,7 @@ def policy_contract(config: TrainConfig, obs_dim: int) -> dict[str, Any]:
         "observation": {
             "name": "observation", "dtype": "float32", "shape": ["batch (optional)", obs_dim],
             "entries": entries,
-            "scale_inside_network": list(config.network.observation_scale),
+            "scale_inside_network": list(config.observation_scale()),
         },
         "action": {
             "name": "action", "dtype": "float32", "shape": ["batch (optional)", 2],
