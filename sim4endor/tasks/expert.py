@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from dm_control.rl import control
@@ -29,8 +30,11 @@ from numpy.typing import NDArray
 
 from sim4endor import rewards
 from sim4endor.physics import GuidewirePhysics
-from sim4endor.tasks.navigation import NavigationTask
+from sim4endor.tasks.anatomy import Anatomy
 from sim4endor.vessels.centerline import Projection
+
+if TYPE_CHECKING:  # navigation imports this module for its wrong-branch starts
+    from sim4endor.tasks.navigation import NavigationTask
 
 FloatArray = NDArray[np.float64]
 
@@ -96,8 +100,14 @@ class CenterlineExpert:
 
     def __call__(self, physics: GuidewirePhysics, task: NavigationTask) -> FloatArray:
         """Returns the action ``[insert, rotate]`` in [-1, 1] for the current state."""
+        return self.steer(physics, task.anatomy, task.manifold_distance(),
+                          task.config.action.max_rotation_step)
+
+    def steer(self, physics: GuidewirePhysics, anatomy: Anatomy,
+              distance: rewards.ManifoldDistance, max_rotation_step: float) -> FloatArray:
+        """Returns the action towards the node of ``distance`` (any labelled node, not only
+        the task's target), with rotation actions scaled by ``max_rotation_step`` (rad)."""
         cfg = self.config
-        distance = task.manifold_distance()
         points = physics.wire_points()
         proj = distance.project(points[-1])
         d = distance.at(proj)
@@ -119,7 +129,7 @@ class CenterlineExpert:
         force = physics.tip_contact_force()
         heading = _unit(points[-1] - points[-2])
         body = self._body_axis(points, physics.tip_start_index())
-        path = _unit(self._path_ahead(distance, self._adjacency(task), proj))
+        path = _unit(self._path_ahead(distance, self._adjacency(anatomy), proj))
         bend = heading - (heading @ body) * body
         turn = path - (path @ body) * body
         aligned = True
@@ -127,7 +137,7 @@ class CenterlineExpert:
         if np.linalg.norm(turn) >= cfg.straight and np.linalg.norm(bend) > 1e-9:
             # Roll angle from the tip's bend to the path's turn, about the body axis.
             phi = math.atan2(float(body @ np.cross(bend, turn)), float(bend @ turn))
-            rotate = float(np.clip(phi / task.config.action.max_rotation_step, -1.0, 1.0))
+            rotate = float(np.clip(phi / max_rotation_step, -1.0, 1.0))
             aligned = abs(math.degrees(phi)) < cfg.tolerance_deg
         stalled = physics.driver_targets()[0] - physics.insertion_depth() > cfg.stall
         if force > cfg.back_force or stalled:
@@ -140,10 +150,10 @@ class CenterlineExpert:
             insert = cfg.push
         return np.array([insert, rotate])
 
-    def _adjacency(self, task: NavigationTask) -> list[list[int]]:
-        key = task.anatomy.key
+    def _adjacency(self, anatomy: Anatomy) -> list[list[int]]:
+        key = anatomy.key
         if key not in self._neighbours:
-            self._neighbours[key] = task.anatomy.vessel.centerline.neighbours()
+            self._neighbours[key] = anatomy.vessel.centerline.neighbours()
         return self._neighbours[key]
 
     def _body_axis(self, points: FloatArray, tip_start: int) -> FloatArray:
