@@ -23,9 +23,17 @@ from sim4endor.errors import Sim4EndoRError
 GYM_NAMESPACE = "Sim4EndoR"
 
 TAG_BENCHMARKING = "benchmarking"
+#: The paper's phantom tasks started down the wrong branch (see :data:`START_WRONG_BRANCH`).
+TAG_REDIRECT = "redirect"
 TAG_RANDOMISED = "randomised"
 #: Entries tagged so need task_kwargs (e.g. a vessel folder) and are not in ``ALL_TASKS``.
 TAG_NEEDS_KWARGS = "needs_kwargs"
+
+
+#: Where an episode starts: the paper's inlet start, or down a branch off the target's path
+#: with the roll drawn over the full circle (``InitialStateConfig.off_path_depth``).
+START_INLET = "inlet"
+START_WRONG_BRANCH = "wrong_branch"
 
 
 class UnknownTaskError(Sim4EndoRError, KeyError):
@@ -47,6 +55,7 @@ class TaskEntry:
         vessel: Vessel name loaded by the task (None when chosen per episode or via kwargs).
         target: Centerline label of the target node (None when chosen per episode or via kwargs).
         description: One line for listings and docs.
+        start: :data:`START_INLET` or :data:`START_WRONG_BRANCH`.
     """
 
     domain: str
@@ -56,6 +65,7 @@ class TaskEntry:
     vessel: str | None
     target: str | None
     description: str
+    start: str = START_INLET
 
 
 def _phantom_entry(vessel: str, camel: str, target: str, description: str) -> TaskEntry:
@@ -70,6 +80,21 @@ def _phantom_entry(vessel: str, camel: str, target: str, description: str) -> Ta
     )
 
 
+def _redirect_entry(vessel: str, camel: str, target: str, phantom: str) -> TaskEntry:
+    """The paper's task of ``target`` started down the wrong branch (``task_a_redirect``)."""
+    return TaskEntry(
+        domain=vessel,
+        task=f"task_{target.lower()}_redirect",
+        gym_id=f"{GYM_NAMESPACE}/{camel}-Task{target}Redirect-v0",
+        tags=frozenset({TAG_REDIRECT}),
+        vessel=vessel,
+        target=target,
+        description=f"{phantom}: reach target {target} from a wire already down another "
+                    "target's branch, rolled anywhere on the circle.",
+        start=START_WRONG_BRANCH,
+    )
+
+
 ENTRIES: tuple[TaskEntry, ...] = (
     _phantom_entry("simplified_phantom", "SimplifiedPhantom", "A",
                    "Simplified phantom (one bifurcation): reach End Point A."),
@@ -79,6 +104,10 @@ ENTRIES: tuple[TaskEntry, ...] = (
                    "Vascular phantom (several bifurcations, tortuous): reach target A."),
     _phantom_entry("vascular_phantom", "VascularPhantom", "B",
                    "Vascular phantom (several bifurcations, tortuous): reach target B."),
+    _redirect_entry("simplified_phantom", "SimplifiedPhantom", "A", "Simplified phantom"),
+    _redirect_entry("simplified_phantom", "SimplifiedPhantom", "B", "Simplified phantom"),
+    _redirect_entry("vascular_phantom", "VascularPhantom", "A", "Vascular phantom"),
+    _redirect_entry("vascular_phantom", "VascularPhantom", "B", "Vascular phantom"),
     TaskEntry(
         domain="random_coronary",
         task="navigate",
@@ -116,6 +145,11 @@ ALL_TASKS: tuple[tuple[str, str], ...] = tuple(
 #: The (domain, task) pairs of the paper's benchmark (Table I and the vascular phantom).
 BENCHMARKING: tuple[tuple[str, str], ...] = tuple(
     (e.domain, e.task) for e in ENTRIES if TAG_BENCHMARKING in e.tags
+)
+
+#: The redirect variants of the paper's tasks, in registry order.
+REDIRECT: tuple[tuple[str, str], ...] = tuple(
+    (e.domain, e.task) for e in ENTRIES if TAG_REDIRECT in e.tags
 )
 
 

@@ -82,6 +82,7 @@ from sim4endor.rewards import RewardConfig
 from sim4endor.tasks import (
     DEFAULT_OBSERVATIONS,
     OBSERVATION_SETS,
+    WRONG_BRANCH_START,
     ActionConfig,
     Anatomy,
     AnatomySource,
@@ -156,9 +157,10 @@ class NavigationEnvironment(control.Environment):
         return timestep
 
 
-def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig
-                       ) -> NavigationConfig:
-    """The task config of ``kwargs``; ``termination`` is the domain's default."""
+def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig,
+                       initial_state: InitialStateConfig) -> NavigationConfig:
+    """The task config of ``kwargs``; ``termination`` and ``initial_state`` are the task's
+    defaults."""
     reward = kwargs.get("reward", "manifold")
     if isinstance(reward, str):
         reward = RewardConfig(metric=reward)  # type: ignore[arg-type]
@@ -170,8 +172,8 @@ def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig
         reward=reward,
         termination=_config(kwargs.get("termination", termination), TerminationConfig,
                             "termination", termination),
-        initial_state=_config(kwargs.get("initial_state", InitialStateConfig()),
-                              InitialStateConfig, "initial_state"),
+        initial_state=_config(kwargs.get("initial_state", initial_state),
+                              InitialStateConfig, "initial_state", initial_state),
         observations=_observations(kwargs.get("observations", ())),
         pixels=_config(kwargs.get("pixels", PixelsConfig()), PixelsConfig, "pixels"),
     )
@@ -340,7 +342,9 @@ def load(
         raise TaskConfigError(f"Unknown task_kwargs {unknown} for {domain_name}/{task_name}; "
                               f"valid: {list(valid)}.")
     termination = coronary.TERMINATION if entry.domain == "coronary" else TerminationConfig()
-    config = _navigation_config(kwargs, termination)
+    initial_state = (WRONG_BRANCH_START if entry.start == registry.START_WRONG_BRANCH
+                     else InitialStateConfig())
+    config = _navigation_config(kwargs, termination, initial_state)
     seed = _seed(kwargs.get("random"))
     extra_env_kwargs = _environment_kwargs(environment_kwargs or {})
     anatomies = _anatomy_source(entry, kwargs)

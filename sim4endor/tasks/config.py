@@ -157,17 +157,44 @@ class InitialStateConfig:
     policy's evaluation trials would all be the same episode. The roll is observable through
     the tip position: the pre-bent tip sits off the vessel axis in its bend direction.
 
+    With ``off_path_depth`` set (the ``*_redirect`` tasks) the episode starts where a wrong
+    turn left the wire: from that start, the scripted expert
+    (:class:`~sim4endor.tasks.expert.CenterlineExpert`) drives it towards another labelled
+    target of the vessel, drawn per episode, until the tip lies a depth drawn uniformly from
+    ``off_path_depth`` off the path to the task's target, i.e. that far down the branch where
+    the two paths part; then the drawn roll is turned in at the carriage's top speed. Reaching
+    the target then takes a pull-back, a turn and a push that depend on where the tip is, which
+    no constant action gives.
+
     Attributes:
         rotation_range: Half-width of the initial roll interval (rad).
         insertion_range: Largest initial insertion (m).
+        off_path_depth: ``(lowest, highest)`` depth (m) of a wrong-branch start; ``None``
+            starts at the inlet.
     """
 
     rotation_range: float = math.radians(30.0)
     insertion_range: float = 1.0e-3
+    off_path_depth: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
+        if isinstance(self.off_path_depth, list):  # as read from YAML or JSON
+            object.__setattr__(self, "off_path_depth", tuple(self.off_path_depth))
         require(self, "InitialStateConfig", TaskConfigError,
-                non_negative=("rotation_range", "insertion_range"))
+                non_negative=("rotation_range", "insertion_range"),
+                positive=("off_path_depth",))
+        depth = self.off_path_depth
+        if depth is not None and (len(depth) != 2 or depth[0] > depth[1]):
+            raise TaskConfigError(
+                f"InitialStateConfig.off_path_depth must be (lowest, highest) in m with "
+                f"lowest <= highest, e.g. (0.005, 0.02), got {depth!r}."
+            )
+
+
+#: The ``*_redirect`` tasks' start: 5-20 mm down another target's branch, rolled anywhere on the
+#: circle. Deeper starts on the vascular phantom leave the tip in a tight bend that the expert
+#: cannot always back out of under the 1 N tip-force limit (docs/tasks/index.md).
+WRONG_BRANCH_START = InitialStateConfig(rotation_range=math.pi, off_path_depth=(0.005, 0.02))
 
 
 @dataclass(frozen=True)

@@ -23,13 +23,17 @@ from numpy.typing import NDArray
 from sim4endor import rewards
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
+from sim4endor.tasks import starts
 from sim4endor.tasks.anatomy import Anatomy, AnatomySource
-from sim4endor.tasks.config import NavigationConfig
+from sim4endor.tasks.config import NavigationConfig, TaskConfigError
 from sim4endor.tasks.fluoroscopy import Fluoroscope
 from sim4endor.tasks.tip_frame import PATH_POINTS, PathToTarget, TipView, tip_view
 from sim4endor.vessels.centerline import Projection
 
 FloatArray = NDArray[np.float64]
+
+#: Centerline label of the inlet node, which every built vessel has.
+INLET_LABEL = "inlet"
 
 #: Failure reasons, in the order they are checked.
 FAILURES: tuple[str, ...] = (
@@ -167,20 +171,24 @@ class NavigationTask(base.Task):
         graph = self._anatomy.vessel.centerline
         return np.array(graph.nodes[graph.labels[self._target]])
 
-    def _distance(self, metric: rewards.MetricName) -> rewards.DistanceToTarget:
-        """Returns the current target's distance function, built once per anatomy/target."""
-        key = (self._anatomy.key, self._target, metric)
+    def _distance(self, metric: rewards.MetricName, label: str | None = None
+                  ) -> rewards.DistanceToTarget:
+        """Returns the distance function to the labelled node ``label`` (default: the current
+        target), built once per anatomy and label."""
+        label = self._target if label is None else label
+        key = (self._anatomy.key, label, metric)
         if key not in self._distances:
             cfg = dataclasses.replace(self.config.reward, metric=metric)
             self._distances[key] = rewards.make_distance(
-                cfg, self._anatomy.vessel.centerline, self._target
+                cfg, self._anatomy.vessel.centerline, label
             )
         return self._distances[key]
 
-    def manifold_distance(self) -> rewards.ManifoldDistance:
-        """The current target's geodesic distance along the centerline (built once per
-        anatomy and target; the success test and the ``manifold_distance`` entry use it)."""
-        distance = self._distance("manifold")
+    def manifold_distance(self, label: str | None = None) -> rewards.ManifoldDistance:
+        """The geodesic distance along the centerline to the labelled node ``label`` (default:
+        the current target, which the success test and the ``manifold_distance`` entry use);
+        built once per anatomy and label."""
+        distance = self._distance("manifold", label)
         assert isinstance(distance, rewards.ManifoldDistance)
         return distance
 
@@ -206,9 +214,35 @@ class NavigationTask(base.Task):
         self._insertion = float(self.random.uniform(0.0, start.insertion_range))
         self._rotation = float(self.random.uniform(-start.rotation_range, start.rotation_range))
         self._last_action = np.zeros(2)
-        physics.place_driver(self._insertion, self._rotation)
+        if start.off_path_depth is None:
+            physics.place_driver(self._insertion, self._rotation)
+        else:
+            self._start_off_path(physics, start.off_path_depth)
         self._d_last = self._distance(self.config.reward.metric)(physics.tip_position())
         self._evaluation = None
+
+    def _start_off_path(self, physics: control.Physics, depths: tuple[float, float]) -> None:
+        """Drives the wire down the path to another target, then turns in the drawn roll (see
+        :class:`~sim4endor.tasks.config.InitialStateConfig`)."""
+        decoys = sorted(t for t in self._anatomy.vessel.targets
+                        if t != self._target and t in self._anatomy.vessel.centerline.labels)
+        if not decoys:
+            raise TaskConfigError(
+                f"A wrong-branch start (InitialStateConfig.off_path_depth) needs a labelled "
+                f"target besides {self._target!r} in {self._anatomy.vessel.name!r}; set "
+                "off_path_depth=None for this vessel."
+            )
+        decoy = decoys[int(self.random.randint(len(decoys)))]
+        depth = float(self.random.uniform(*depths))
+        physics.place_driver(self._insertion, 0.0)
+        distances = (self.manifold_distance(decoy), self.manifold_distance(),
+                     self.manifold_distance(INLET_LABEL))
+        action = self.config.action
+        self._insertion, rotation = starts.drive_off_path(
+            physics, self._anatomy, distances, depth, action)
+        self._rotation = starts.turn_in(physics, self._insertion, rotation, self._rotation,
+                                        action)
+        physics.data.time = 0.0  # the episode's clock starts when the agent takes over
 
     def _limits(self, physics: control.Physics) -> tuple[float, float]:
         """Returns the failure limits of commanded insertion and |rotation| (m, rad)."""
