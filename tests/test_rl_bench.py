@@ -21,7 +21,7 @@ from sim4endor.rl.bench import (
     run_bench,
     write_report,
 )
-from sim4endor.rl.table import Cell, Reference
+from sim4endor.rl.table import BaselineRows, Cell, Reference
 from sim4endor.rl.trainer import EVAL_SEED_OFFSET
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
@@ -143,6 +143,37 @@ def test_report_prints_the_published_reference_under_its_row(tmp_path: Path) -> 
     assert "| ↳ paper (Table I) | 10 | 70% (7/10) | 5.43 |" in table
     assert table in text.read_text()
     assert "↳ rows: paper (Table I)" in text.read_text()
+
+
+def test_report_shows_the_baseline_rows_under_the_table(tmp_path: Path) -> None:
+    bench = dataclasses.replace(_tiny_bench(), rows=(("ppo", "manifold"),))
+    run_bench(bench, tmp_path, make_env=pendulum_env)
+    baselines = BaselineRows(
+        "open_loop_baselines.json",
+        {"open loop: constant push [1, 0]": {("simplified_phantom", "task_a"): Cell(20, 20, 3.05,
+                                                                                  None)}},
+        {},
+    )
+    text = write_report(dataclasses.replace(bench, baselines=baselines), tmp_path, None,
+                        "local").read_text()
+    assert "| open loop: constant push [1, 0] | 20 | 100% (20/20) | 3.05 |" in text
+    assert "measured references from `open_loop_baselines.json`" in text
+
+
+def test_a_bench_config_reads_its_baselines_beside_it(tmp_path: Path) -> None:
+    (tmp_path / "rows.json").write_text(
+        '{"rows": [{"role": "random", "baseline": "uniform random", "domain": "d", '
+        '"task": "t", "metrics": {"trials": 4, "success_rate": 0.25, '
+        '"mean_completion_time_s": 9.0}}]}')
+    config = tmp_path / "grid.yaml"
+    config.write_text("rows: []\ntasks: []\nbaselines: rows.json\n")
+    bench = load_bench_config(config)
+    assert bench.baselines is not None
+    assert bench.baselines.cells["open loop: uniform random actions"][("d", "t")] == Cell(
+        4, 1, 9.0, None)
+    config.write_text("rows: []\ntasks: []\nbaselines: missing.json\n")
+    with pytest.raises(BenchConfigError, match="'baselines': Cannot read baseline rows"):
+        load_bench_config(config)
 
 
 def _pendulum_failing_seed_1(seed: int) -> EnvBase:

@@ -8,8 +8,17 @@ from pathlib import Path
 import pytest
 
 from sim4endor.cli import main
+from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.config import apply_overrides, default_config, save_config
-from sim4endor.rl.table import Cell, Reference, RunResult, markdown_table, per_run_table, pool
+from sim4endor.rl.table import (
+    Cell,
+    Reference,
+    RunResult,
+    markdown_table,
+    per_run_table,
+    pool,
+    read_baselines,
+)
 
 
 def _result(algorithm: str, reward: str, task: str, seed: int, successes: int, time: float | None):
@@ -63,6 +72,47 @@ def test_reference_rows_sit_under_their_measured_rows() -> None:
     assert markdown_table(results) == markdown_table(results, None)
 
 
+def _baseline_row(role: str, label: str, task: str, successes: int, time: float | None
+                  ) -> dict[str, object]:
+    metrics = {"trials": 20, "success_rate": successes / 20, "mean_completion_time_s": time}
+    return {"role": role, "baseline": label, "domain": "simplified_phantom", "task": task,
+            "metrics": metrics}
+
+
+def test_baseline_rows_follow_the_measured_rows(tmp_path: Path) -> None:
+    path = tmp_path / "baselines.json"
+    path.write_text(json.dumps({"rows": [
+        _baseline_row("push", "constant [1, 0]", "task_a", 20, 3.05),
+        _baseline_row("best constant", "constant [1, 0.5]", "task_a", 20, 3.0),
+        _baseline_row("best constant", "constant [0.5, -1]", "task_a_redirect", 0, None),
+        _baseline_row("expert", "scripted expert (privileged)", "task_a", 19, 5.1),
+    ]}))
+    baselines = read_baselines(path)
+    results = [_result("sac", "manifold", "task_a", 0, 10, 3.1),
+               _result("sac", "manifold", "task_b", 0, 10, 3.2)]
+    lines = markdown_table(results, None, baselines).splitlines()
+    assert lines[3:] == [
+        "| open loop: constant push [1, 0] | 20 | 100% (20/20) | 3.05 | – | – | – |",
+        "| open loop: best constant action | 20, constant [1, 0.5] | 100% (20/20) | 3.00 "
+        "| – | – | – |",
+        "| scripted expert (privileged state) | 20 | 95% (19/20) | 5.10 | – | – | – |",
+    ]
+    path.write_text(json.dumps({"rows": [{"role": "push"}]}))
+    with pytest.raises(Sim4EndoRError, match=r"open_loop_baselines\.py --json"):
+        read_baselines(path)
+
+
+def test_shipped_baselines_cover_every_task_of_the_shipped_benches() -> None:
+    from sim4endor.rl.bench import load_bench_config
+
+    for name in ("table1", "complex_phantom"):
+        bench = load_bench_config(Path(__file__).resolve().parents[1] / "experiments" / "bench"
+                                  / f"{name}.yaml")
+        assert bench.baselines is not None
+        for cells in bench.baselines.cells.values():
+            assert set(bench.tasks) <= set(cells)
+
+
 def _fake_run(run_dir: Path, algorithm: str, seed: int, success_rate: float) -> None:
     config = apply_overrides(default_config(algorithm), [f"seed={seed}"])
     save_config(config, run_dir / "config.yaml")
@@ -89,10 +139,12 @@ def test_table_command_prints_the_papers_cells_from_a_bench_config(
     printed = capsys.readouterr().out.splitlines()
     assert printed[2] == "| SAC (manifold distance reward) | 10 (1) | 90% (9/10) | 6.00 |"
     assert printed[3] == "| ↳ paper (Table I) | 10 | 80% (8/10) | 5.69 |"
+    assert printed[4].startswith("| open loop: constant push [1, 0] | 20 | ")
     bare = tmp_path / "grid.yaml"
     bare.write_text("rows: []\ntasks: []\n")
     assert main(["table", str(tmp_path), "--reference", str(bare)]) == 2
-    assert f"{bare} has no 'reference' section" in capsys.readouterr().err
+    assert f"{bare} has neither a 'reference' nor a 'baselines' section" in (
+        capsys.readouterr().err)
 
 
 def test_table_command_without_runs_is_a_one_line_error(tmp_path: Path, capsys) -> None:

@@ -24,7 +24,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         type=Path,
         metavar="BENCH_YAML",
         help="print the published cells of this bench config's `reference` under the measured "
-        "rows (experiments/bench/table1.yaml holds the paper's Table I)",
+        "rows, and its `baselines` rows under the table (experiments/bench/table1.yaml holds "
+        "the paper's Table I and the open-loop baselines)",
     )
     parser.set_defaults(func=run)
 
@@ -36,18 +37,21 @@ def run(args: argparse.Namespace) -> int:
     from sim4endor.rl.bench import BenchConfigError, load_bench_config
     from sim4endor.rl.table import collect_results, find_runs, markdown_table
 
-    reference = None
+    reference = baselines = None
     if args.reference:
-        reference = load_bench_config(args.reference).reference
-        if reference is None:
-            raise BenchConfigError(f"{args.reference} has no 'reference' section.")
+        bench = load_bench_config(args.reference)
+        reference, baselines = bench.reference, bench.baselines
+        if reference is None and baselines is None:
+            raise BenchConfigError(
+                f"{args.reference} has neither a 'reference' nor a 'baselines' section."
+            )
     results = collect_results(find_runs(args.paths))
     if not results:
         raise Sim4EndoRError(
             f"No evaluated runs under {[str(p) for p in args.paths]}: train with `sim4endor "
             "train` (or evaluate with `sim4endor evaluate RUN_DIR`) first."
         )
-    table = markdown_table(results, reference)
+    table = markdown_table(results, reference, baselines)
     if args.out:
         atomic_write_text(args.out, table)
     print(table, end="")  # noqa: T201

@@ -34,7 +34,15 @@ from sim4endor.rl.envs import EnvFactory
 from sim4endor.rl.metrics import describe
 from sim4endor.rl.plots import learning_curve_figure, scalar_names
 from sim4endor.rl.runs import read_evaluation
-from sim4endor.rl.table import Cell, Reference, RunResult, markdown_table, per_run_table
+from sim4endor.rl.table import (
+    BaselineRows,
+    Cell,
+    Reference,
+    RunResult,
+    markdown_table,
+    per_run_table,
+    read_baselines,
+)
 from sim4endor.rl.trainer import train
 
 Backend = Literal["local", "ray"]
@@ -58,6 +66,9 @@ class BenchConfig:
         workers: parallel runs of the local process pool.
         reference: published results shown under the measured rows of the table (transcribed
             into the config, never measured here).
+        baselines: measured open-loop and expert rows shown under the table (the YAML names
+            the JSON file of ``experiments/benchmarks/open_loop_baselines.py``, relative to
+            the YAML).
     """
 
     rows: tuple[tuple[str, str], ...]
@@ -66,19 +77,23 @@ class BenchConfig:
     overrides: tuple[str, ...] = ()
     workers: int = 2
     reference: Reference | None = None
+    baselines: BaselineRows | None = None
 
 
 def load_bench_config(path: Path) -> BenchConfig:
-    """Reads a bench YAML file (keys: rows, tasks, seeds, overrides, workers, reference)."""
+    """Reads a bench YAML file (keys: rows, tasks, seeds, overrides, workers, reference,
+    baselines)."""
     try:
         data = yaml.safe_load(Path(path).read_text()) or {}
     except (OSError, yaml.YAMLError) as exc:
         raise BenchConfigError(f"Cannot read bench config {path}: {exc}") from exc
-    return bench_config_from_dict(data, source=str(path))
+    return bench_config_from_dict(data, source=str(path), root=Path(path).parent)
 
 
-def bench_config_from_dict(data: Mapping[str, Any], *, source: str = "bench") -> BenchConfig:
-    """Validates and converts a bench mapping (see :class:`BenchConfig`)."""
+def bench_config_from_dict(data: Mapping[str, Any], *, source: str = "bench",
+                           root: Path = Path()) -> BenchConfig:
+    """Validates and converts a bench mapping (see :class:`BenchConfig`); a relative
+    ``baselines`` path is read from ``root``."""
     known = {f.name for f in dataclasses.fields(BenchConfig)}
     unknown = set(data) - known
     if unknown:
@@ -101,7 +116,16 @@ def bench_config_from_dict(data: Mapping[str, Any], *, source: str = "bench") ->
         overrides=tuple(str(o) for o in data.get("overrides", ())),
         workers=int(data.get("workers", 2)),
         reference=_reference(data.get("reference"), source),
+        baselines=None if data.get("baselines") is None
+        else _baselines(root / str(data["baselines"]), source),
     )
+
+
+def _baselines(path: Path, source: str) -> BaselineRows:
+    try:
+        return read_baselines(path)
+    except Sim4EndoRError as exc:
+        raise BenchConfigError(f"{source}: 'baselines': {exc}") from exc
 
 
 _REFERENCE_CELL_KEYS = {"algorithm", "reward", "domain", "task", "successes", "trials", "time_s"}
@@ -328,7 +352,7 @@ def write_report(
         evaluations.append((run_dir.name, evaluation))
     if not results:
         raise Sim4EndoRError(f"No run of the bench under {out_dir} has an evaluation yet.")
-    table = markdown_table(results, bench.reference)
+    table = markdown_table(results, bench.reference, bench.baselines)
     atomic_write_text(out_dir / "table.md", table)
     figures = []
     for domain, task in bench.tasks:
@@ -389,7 +413,8 @@ def _results_markdown(
             "`reference` (published, not measured here)."
             if bench.reference
             else ""
-        ),
+        )
+        + (f" {baselines_note(bench.baselines)}" if bench.baselines else ""),
         "",
         "## Every run",
         "",
@@ -416,6 +441,19 @@ def _results_markdown(
     lines += ["", "## Learning curves (mean over seeds, shaded from the lowest to the highest)", ""]
     lines += [f"![{path.stem}]({path.as_posix()})" for path in report.figures]
     return "\n".join(lines) + "\n"
+
+
+def baselines_note(baselines: BaselineRows) -> str:
+    """The sentence under the table that says what the baseline rows are."""
+    return (
+        f"Rows without an algorithm: measured references from `{baselines.source}` "
+        "(`experiments/benchmarks/open_loop_baselines.py`), evaluated as the trained policies "
+        "are: open-loop policies that never read the observation (the constant push `[1, 0]`; "
+        "the best constant action of `sim4endor.rl.baselines.CONSTANT_GRID`, chosen per task "
+        "on other seeds than those reported and shown beside its trials; uniform "
+        "random actions) and the scripted expert, which reads privileged state (the wire's "
+        "shape and the centerline). A task an open-loop row solves does not show steering."
+    )
 
 
 def _cpu_model() -> str:

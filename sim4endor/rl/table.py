@@ -9,10 +9,12 @@ number of successes).
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.config import TrainConfig
 from sim4endor.rl.metrics import other_outcomes
 from sim4endor.rl.runs import read_evaluation, run_config
@@ -77,6 +79,62 @@ class Reference:
     cells: Mapping[CellKey, Cell]
 
 
+#: Row label of each role the open-loop benchmark writes
+#: (``experiments/benchmarks/open_loop_baselines.py``), in table order.
+BASELINE_LABELS: Mapping[str, str] = {
+    "push": "open loop: constant push [1, 0]",
+    "best constant": "open loop: best constant action",
+    "random": "open loop: uniform random actions",
+    "expert": "scripted expert (privileged state)",
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class BaselineRows:
+    """Measured reference rows printed under the table: open-loop policies and the expert.
+
+    Attributes:
+        source: the file they were read from, named in the report.
+        cells: each row label's cell per (domain, task).
+        notes: a note per (row label, domain, task), e.g. the constant action chosen there.
+    """
+
+    source: str
+    cells: Mapping[str, Mapping[tuple[str, str], Cell]]
+    notes: Mapping[tuple[str, str, str], str]
+
+
+def read_baselines(path: Path) -> BaselineRows:
+    """Reads the ``--json`` file of ``experiments/benchmarks/open_loop_baselines.py``.
+
+    Raises:
+        Sim4EndoRError: if it cannot be read or lacks a field; the message names it.
+    """
+    try:
+        data = json.loads(Path(path).read_text())
+        cells: dict[str, dict[tuple[str, str], Cell]] = {}
+        notes: dict[tuple[str, str, str], str] = {}
+        for row in data["rows"]:
+            label = BASELINE_LABELS[row["role"]]
+            metrics = row["metrics"]
+            trials = int(metrics["trials"])
+            cells.setdefault(label, {})[(row["domain"], row["task"])] = Cell(
+                trials=trials,
+                successes=round(float(metrics["success_rate"]) * trials),
+                mean_completion_time_s=metrics["mean_completion_time_s"],
+                seeds=None,
+            )
+            if row["role"] == "best constant":
+                notes[(label, row["domain"], row["task"])] = row["baseline"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise Sim4EndoRError(
+            f"Cannot read baseline rows from {path} ({exc!r}); write them with "
+            "`python experiments/benchmarks/open_loop_baselines.py --json PATH`."
+        ) from exc
+    ordered = {label: cells[label] for label in BASELINE_LABELS.values() if label in cells}
+    return BaselineRows(str(path), ordered, notes)
+
+
 def find_runs(paths: Iterable[Path]) -> list[Path]:
     """Run folders among ``paths``, searching inside folders that are not runs themselves."""
     found: list[Path] = []
@@ -113,10 +171,13 @@ def row_label(algorithm: str, reward: str) -> str:
     return f"{_ALGORITHM_NAMES.get(algorithm, algorithm.upper())} ({reward} distance reward)"
 
 
-def markdown_table(results: Sequence[RunResult], reference: Reference | None = None) -> str:
+def markdown_table(results: Sequence[RunResult], reference: Reference | None = None,
+                   baselines: BaselineRows | None = None) -> str:
     """Table I as GitHub markdown: one row per (algorithm, reward), three columns per task.
 
-    With a ``reference``, a row ``↳ LABEL`` under each measured row shows its published cells.
+    With a ``reference``, a row ``↳ LABEL`` under each measured row shows its published cells;
+    with ``baselines``, their rows follow the measured ones (a chosen action in the trials
+    cell).
     """
     rows = list(dict.fromkeys((r.algorithm, r.reward) for r in results))
     tasks = list(dict.fromkeys((r.domain, r.task) for r in results))
@@ -144,7 +205,25 @@ def markdown_table(results: Sequence[RunResult], reference: Reference | None = N
             for cell in published:
                 cells += _format_cell(cell) if cell else ["–", "–", "–"]
             lines.append(_markdown_row(cells))
+    if baselines:
+        lines += baseline_rows(baselines, tasks)
     return "\n".join(lines) + "\n"
+
+
+def baseline_rows(baselines: BaselineRows, tasks: Sequence[tuple[str, str]]) -> list[str]:
+    """The markdown rows of ``baselines`` for the table's ``tasks`` columns."""
+    lines = []
+    for label, by_task in baselines.cells.items():
+        cells = [label]
+        for domain, task in tasks:
+            cell = by_task.get((domain, task))
+            formatted = _format_cell(cell) if cell else ["–", "–", "–"]
+            note = baselines.notes.get((label, domain, task))
+            if note:
+                formatted[0] += f", {note}"
+            cells += formatted
+        lines.append(_markdown_row(cells))
+    return lines
 
 
 def _markdown_row(cells: Sequence[str]) -> str:
