@@ -8,7 +8,9 @@ Example:
 
 The names come from :mod:`sim4endor.registry` (``ALL_TASKS``, ``BENCHMARKING``). Domains:
 ``simplified_phantom`` and ``vascular_phantom`` (tasks ``task_a``, ``task_b``: reach target A
-or B), ``random_coronary`` (task ``navigate``: a seeded random tree and target per episode)
+or B, the paper's; ``task_a_redirect``, ``task_b_redirect``: the same from a wire already
+5-20 mm down the other target's branch and rolled anywhere on the circle, which no constant
+action solves), ``random_coronary`` (task ``navigate``: a seeded random tree and target per episode)
 and ``vessel`` (task ``navigate``: any built vessel folder,
 ``task_kwargs={"vessel": NAME_OR_PATH, "target": LABEL}``).
 
@@ -56,7 +58,8 @@ target + 10 mm), |rotation| > 10 turns, instability). D is the manifold
 distance; ``task_kwargs={"reward": "euclidean"}`` gives the Euclidean baseline. Episodes are
 truncated after 20 s of simulated time (discount 1); terminal steps have discount 0. Each
 episode starts with the wire rolled by a random angle in ±30° and advanced by 0–1 mm, drawn
-from the task's seeded generator (``task_kwargs={"initial_state": InitialStateConfig(...)}``). The
+from the task's seeded generator (``task_kwargs={"initial_state": InitialStateConfig(...)}``;
+the redirect tasks start from ``tasks.WRONG_BRANCH_START`` instead). The
 terms of each step are in ``env.task.step_info()`` (the gymnasium ``info``).
 """
 
