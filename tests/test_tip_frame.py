@@ -8,8 +8,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from sim4endor import suite
+from sim4endor.observations import PATH_POINTS, PATH_SPACING
 from sim4endor.tasks import OBSERVATION_SETS, TaskConfigError
-from sim4endor.tasks.tip_frame import PATH_POINTS, PATH_SPACING, PathToTarget, tip_view
+from sim4endor.tasks.tip_frame import PathToTarget, tip_view
 
 GENERALIST = OBSERVATION_SETS["generalist"]
 

@@ -8,8 +8,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from sim4endor.observations import OBSERVATION_SETS
 from sim4endor.rl.config import MAX_SEED, EnvConfig
-from sim4endor.tasks.config import OBSERVATION_SETS
 
 
 def positive_int(text: str) -> int:

@@ -21,6 +21,7 @@ import yaml
 
 from sim4endor._checks import require
 from sim4endor.errors import Sim4EndoRError
+from sim4endor.observations import OBSERVATION_SETS, OBSERVATION_UNITS
 
 Algorithm = Literal["ddpg", "sac", "ppo"]
 ALGORITHMS: tuple[str, ...] = ("ddpg", "sac", "ppo")
@@ -56,8 +57,6 @@ OBSERVATION_SCALES: dict[str, float] = {
 def default_observation_scale(env: EnvConfig) -> tuple[float, ...]:
     """One factor per observation number: each entry's :data:`OBSERVATION_SCALES` factor,
     repeated over its size (``[20, 20, 20, 30, 30, 30]`` for the paper's state)."""
-    from sim4endor.tasks.config import OBSERVATION_UNITS
-
     factors: list[float] = []
     for name in env.observation_names():
         size = OBSERVATION_UNITS[name][1]
@@ -121,8 +120,6 @@ class EnvConfig:
     def __post_init__(self) -> None:
         _check(self, "env", positive=("num_envs", "pool_size"),
                non_negative=("pool_seed", "eval_pool_seed"))
-        from sim4endor.tasks.config import OBSERVATION_SETS
-
         if self.observations not in OBSERVATION_SETS:
             raise ConfigError(f"env.observations must be one of {sorted(OBSERVATION_SETS)}, "
                               f"got {self.observations!r}.")
@@ -135,8 +132,6 @@ class EnvConfig:
 
     def observation_names(self) -> tuple[str, ...]:
         """The task's observation entries, in the order the observation vector holds them."""
-        from sim4endor.tasks.config import OBSERVATION_SETS
-
         names = OBSERVATION_SETS[self.observations] + self.extra_observations
         return tuple(dict.fromkeys(names))
 

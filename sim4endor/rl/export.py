@@ -191,7 +191,7 @@ def policy_contract(config: TrainConfig, obs_dim: int) -> dict[str, Any]:
 
 def _observation_layout(names: tuple[str, ...], obs_dim: int) -> list[dict[str, Any]] | None:
     """Slices of the observation vector, or None when it is not a sim4endor task's (tests)."""
-    from sim4endor.tasks.config import OBSERVATION_UNITS
+    from sim4endor.observations import OBSERVATION_UNITS
 
     sizes = {name: OBSERVATION_UNITS[name][1] for name in names}
     unknown = [name for name, size in sizes.items() if size is None]

@@ -23,11 +23,12 @@ from numpy.typing import NDArray
 from sim4endor import rewards
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
+from sim4endor.observations import PATH_POINTS
 from sim4endor.tasks import starts
 from sim4endor.tasks.anatomy import Anatomy, AnatomySource
 from sim4endor.tasks.config import NavigationConfig, TaskConfigError
 from sim4endor.tasks.fluoroscopy import Fluoroscope
-from sim4endor.tasks.tip_frame import PATH_POINTS, PathToTarget, TipView, tip_view
+from sim4endor.tasks.tip_frame import PathToTarget, TipView, tip_view
 from sim4endor.vessels.centerline import Projection
 
 FloatArray = NDArray[np.float64]

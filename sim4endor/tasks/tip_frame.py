@@ -21,16 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from sim4endor.observations import PATH_POINTS, PATH_SPACING
 from sim4endor.vessels.centerline import CenterlineGraph, Projection
 
 FloatArray = NDArray[np.float64]
-
-#: Points of the path ahead, and their spacing along the path (m): 8 x 2.5 mm = 20 mm, past
-#: the next bifurcation in a coronary tree once the tip is within 20 mm of it (the generator's
-#: segments are 15-60 mm long) and about four times the shaped tip's length.
-PATH_POINTS = 8
-PATH_SPACING = 0.0025
-
 
 @dataclass(frozen=True)
 class PathToTarget:

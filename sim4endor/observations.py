@@ -1,0 +1,68 @@
+"""The names, units and sizes of the navigation tasks' observation entries, and their sets.
+
+Plain data with no MuJoCo behind it, so the training configuration (and the command line,
+which must start even where an OpenGL library is missing) can check names against it.
+"""
+
+from __future__ import annotations
+
+#: Points of the ``path_ahead`` entry, and their spacing along the route (m): 8 x 2.5 mm =
+#: 20 mm, past the next bifurcation in a coronary tree once the tip is within 20 mm of it
+#: (the generator's segments are 15-60 mm long) and about four times the shaped tip's length.
+PATH_POINTS = 8
+PATH_SPACING = 0.0025
+
+#: Observation entries every task returns: the paper's state s_t = [p_t, v_t].
+DEFAULT_OBSERVATIONS: tuple[str, ...] = ("tip_position", "tip_velocity")
+#: Entries that can be added through ``task_kwargs={"observations": (...)}``.
+OPTIONAL_OBSERVATIONS: tuple[str, ...] = (
+    "target_position",
+    "wire_shape",
+    "last_action",
+    "insertion",
+    "rotation",
+    "manifold_distance",
+    "pixels",
+    "path_ahead",
+    "axis_offset",
+    "lumen_radius",
+    "tip_velocity_local",
+    "tip_force",
+    "wall_force",
+)
+#: Named observation sets (``task_kwargs={"observations": "generalist"}``), each used as it
+#: is, without the defaults. ``generalist`` is what the tip sees in its own frame
+#: (:mod:`sim4endor.tasks.tip_frame`) plus scalars: it does not change when the anatomy is
+#: rotated or translated with the wire, so nothing in it names one patient's coordinates.
+OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
+    "paper": DEFAULT_OBSERVATIONS,
+    "generalist": (
+        "path_ahead",
+        "axis_offset",
+        "lumen_radius",
+        "tip_velocity_local",
+        "manifold_distance",
+        "tip_force",
+        "wall_force",
+        "last_action",
+    ),
+}
+
+#: Unit and size of each observation entry (``wire_shape`` is 3 per wire vertex).
+OBSERVATION_UNITS: dict[str, tuple[str, int | None]] = {
+    "tip_position": ("m", 3),
+    "tip_velocity": ("m/s", 3),
+    "target_position": ("m", 3),
+    "wire_shape": ("m", None),
+    "last_action": ("1 (normalised action)", 2),
+    "insertion": ("m", 1),
+    "rotation": ("rad", 1),
+    "manifold_distance": ("m", 1),
+    "pixels": ("grey level 0-255", None),
+    "path_ahead": ("m, tip frame", 3 * PATH_POINTS),
+    "axis_offset": ("lumen radii, tip frame", 3),
+    "lumen_radius": ("m", 1),
+    "tip_velocity_local": ("m/s, tip frame", 3),
+    "tip_force": ("N", 1),
+    "wall_force": ("N", 1),
+}
