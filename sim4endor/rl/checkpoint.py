@@ -148,5 +148,6 @@ def load_checkpoint(
                 f"{replay} is not a readable replay buffer ({type(exc).__name__}); delete it to "
                 "resume with an empty buffer."
             ) from None
-        replay_buffer.extend(transitions)
+        # A checkpoint written before the replay kept only the loss's entries holds them all.
+        replay_buffer.extend(agent.transitions(transitions))
     return progress

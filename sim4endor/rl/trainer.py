@@ -298,7 +298,7 @@ class _Loop:
             losses = self._ppo_update(batch)
         else:
             assert self.replay is not None
-            self.replay.extend(flat)
+            self.replay.extend(self.agent.transitions(flat))
             losses = []
             if frames >= cfg.collector.init_random_frames:
                 count = cfg.optim.updates_per_batch or flat.numel()
@@ -321,7 +321,7 @@ class _Loop:
         # GAE runs along time (the last batch dim) before several envs' batches are flattened.
         with torch.no_grad():
             batch = self.agent.advantage(batch)
-        flat = batch.reshape(-1)
+        flat = self.agent.transitions(batch.reshape(-1))
         losses = []
         for _ in range(ppo.epochs):
             for index in torch.randperm(flat.numel()).split(ppo.minibatch_size):
