@@ -1,8 +1,11 @@
-"""The learner's shortcuts keep TorchRL's maths: a gradient step of each algorithm gives the
-same weights, bit for bit, as the plain TorchRL pieces they replace (``TensorDictModule``,
-``ValueOperator``, ``SoftUpdate``, batches holding every entry the environment reports)."""
+"""The learner: its shortcuts keep TorchRL's maths (a gradient step of each algorithm gives
+the same weights, bit for bit, as the plain TorchRL pieces they replace: ``TensorDictModule``,
+``ValueOperator``, ``SoftUpdate``, batches holding every entry the environment reports), and
+the choice of its device."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import pytest
 import torch
@@ -13,9 +16,11 @@ from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import ValueOperator
 from torchrl.objectives import SoftUpdate
 
+from sim4endor.cli import main
 from sim4endor.rl import algorithms, networks
 from sim4endor.rl.algorithms import Agent, build_agent
-from sim4endor.rl.config import ALGORITHMS
+from sim4endor.rl.config import ALGORITHMS, ConfigError
+from sim4endor.rl.trainer import train
 
 
 def _agent(algorithm: str, seed: int = 0) -> Agent:
@@ -77,3 +82,36 @@ def test_polyak_update_moves_targets_tau_of_the_way(algorithm: str) -> None:
     assert moved and all(name.startswith("target_") for name in moved)
     for name in moved:
         torch.testing.assert_close(after[name] - before[name], torch.full_like(after[name], 0.005))
+
+
+def test_auto_device_is_cuda_only_when_torch_sees_a_gpu(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert algorithms.learner_device("auto") == torch.device("cpu")
+    assert algorithms.learner_device("cpu") == torch.device("cpu")
+    with pytest.raises(ConfigError, match="device=cuda but torch sees no CUDA GPU"):
+        algorithms.learner_device("cuda")
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    assert algorithms.learner_device("auto") == torch.device("cuda")
+    assert algorithms.learner_device("cpu") == torch.device("cpu")
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="needs a machine without a CUDA GPU")
+def test_train_device_cuda_without_a_gpu_is_refused_before_writing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    status = main(["train", "sac", "--device", "cuda", "--frames", "10", "--out", str(out)])
+    assert status == 2 and "use device=auto or device=cpu" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_cpu_learner_acts_with_its_own_modules(tmp_path: Path) -> None:
+    agent = _agent("ddpg")
+    assert agent.device == torch.device("cpu")
+    assert agent.env_actor is agent.actor
+    assert agent.exploration_policy[0] is agent.actor  # the noise wraps the learner's actor
+    config = tiny_config("sac", "device=cpu")
+    train(config, tmp_path, make_env=pendulum_env, progress=False)
+    # The device is where a run happens to be: resuming elsewhere (auto) is the same run.
+    more = tiny_config("sac", "device=auto", "collector.total_frames=300")
+    assert train(more, tmp_path, make_env=pendulum_env, progress=False)["frames"] == 300

@@ -81,7 +81,8 @@ def _read(path: Path, keys: tuple[str, ...], fix: str) -> dict[str, Any]:
     suggests ``weights_only=False``, which would run whatever code the file holds.
     """
     try:
-        data = torch.load(path, weights_only=True)
+        # map_location: a run trained on a GPU resumes or is evaluated on any machine.
+        data = torch.load(path, weights_only=True, map_location="cpu")
     except Exception as exc:  # torch raises RuntimeError, EOFError, UnpicklingError, ...
         raise CheckpointError(
             f"{path} is not a readable checkpoint ({type(exc).__name__}: truncated, "
