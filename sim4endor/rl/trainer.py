@@ -224,7 +224,10 @@ def make_collector(
     elif config.env.num_envs == 1:
         collector = Collector(create[0], agent.exploration_policy, **local)
     else:
-        collector = MultiSyncCollector(create, agent.exploration_policy, **local)
+        # num_threads: torchrl would give the learner max(1, threads - workers) instead.
+        collector = MultiSyncCollector(
+            create, agent.exploration_policy, num_threads=config.torch_threads, **local
+        )
     collector.set_seed(seed)
     return collector
 
@@ -293,6 +296,8 @@ class _Loop:
                     self._periodic(state, frames - batch.numel())
         finally:
             collector.shutdown()
+            # A multi-process collector's shutdown hands its workers' threads to this process.
+            torch.set_num_threads(cfg.torch_threads)
             bar.close()
         checkpoint.save_checkpoint(self.run_dir, self.agent, state, self.replay)
         return state
