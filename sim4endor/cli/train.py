@@ -40,6 +40,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="--backend ray: the cluster's head node, as `ray start --head` prints it "
              "(default: RAY_ADDRESS, else Ray on this machine)",
     )
+    parser.add_argument("--device", choices=("auto", "cpu", "cuda"),
+                        help="where the learner runs (default: auto, a CUDA GPU if torch sees "
+                        "one); the environments always run on the CPU")
     arg_types.add_task_arguments(parser, evaluation_split=True)
     parser.add_argument("--config", type=Path, help="YAML config file (e.g. experiments/sac/)")
     parser.add_argument(
@@ -68,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "env.num_envs": args.envs,
         "collector.backend": args.backend,
+        "device": args.device,
     }
     overrides = [f"{key}={value}" for key, value in flags.items() if value is not None]
     overrides += arg_types.env_overrides(arg_types.task_arguments(args))

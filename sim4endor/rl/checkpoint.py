@@ -81,7 +81,8 @@ def _read(path: Path, keys: tuple[str, ...], fix: str) -> dict[str, Any]:
     suggests ``weights_only=False``, which would run whatever code the file holds.
     """
     try:
-        data = torch.load(path, weights_only=True)
+        # map_location: a run trained on a GPU resumes or is evaluated on any machine.
+        data = torch.load(path, weights_only=True, map_location="cpu")
     except Exception as exc:  # torch raises RuntimeError, EOFError, UnpicklingError, ...
         raise CheckpointError(
             f"{path} is not a readable checkpoint ({type(exc).__name__}: truncated, "
@@ -148,5 +149,6 @@ def load_checkpoint(
                 f"{replay} is not a readable replay buffer ({type(exc).__name__}); delete it to "
                 "resume with an empty buffer."
             ) from None
-        replay_buffer.extend(transitions)
+        # A checkpoint written before the replay kept only the loss's entries holds them all.
+        replay_buffer.extend(agent.transitions(transitions))
     return progress

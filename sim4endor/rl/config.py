@@ -335,11 +335,15 @@ class TrainConfig:
         checkpoint_interval_frames: save a resumable checkpoint every this many frames.
         torch_threads: intra-op threads of torch; the networks are small, so one thread is
             fastest and leaves the other cores to the environment workers.
+        device: where the learner (networks, losses, replay buffer) runs: ``auto`` (a CUDA
+            GPU when torch sees one, else the CPU), ``cpu`` or ``cuda``. The environments
+            always step on the CPU with a CPU copy of the policy. A run resumes on any device.
     """
 
     algorithm: Algorithm = "ddpg"
     seed: int = 0
     torch_threads: int = 1
+    device: Literal["auto", "cpu", "cuda"] = "auto"
     checkpoint_interval_frames: int = 10_000
     env: EnvConfig = EnvConfig()
     collector: CollectorConfig = CollectorConfig()

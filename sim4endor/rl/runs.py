@@ -97,7 +97,7 @@ def evaluate_run(
         agent = _restored_agent(run_dir, config, env)
         episodes = rollout_episodes(
             env,
-            agent.actor,
+            agent.env_actor,
             trials=trials,
             max_steps=max_steps or config.eval.max_steps,
             seed=seed,

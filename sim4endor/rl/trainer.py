@@ -36,7 +36,7 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 from sim4endor._atomic import atomic_write_text
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl import checkpoint, ray_backend
-from sim4endor.rl.algorithms import Agent, build_agent
+from sim4endor.rl.algorithms import Agent, build_agent, learner_device
 from sim4endor.rl.config import TrainConfig, load_config, save_config, to_dict
 from sim4endor.rl.envs import EnvFactory, env_factory
 from sim4endor.rl.evaluation import EpisodeKeys, rollout_episodes, success_fraction
@@ -119,18 +119,20 @@ def _train(
     make_eval_env = make_env or env_factory(config.env, evaluation=True)
     make_env = make_env or env_factory(config.env)
     _check_resumable(run_dir, config)
+    device = learner_device(config.device)
     torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)
     # Built before anything is written: a task argument the domain refuses (or a missing
     # vessel folder) must not leave a run folder behind.
     eval_env = make_eval_env(config.seed + EVAL_SEED_OFFSET)
     save_config(config, run_dir / CONFIG_FILE)
-    agent = build_agent(config, eval_env.observation_spec, eval_env.action_spec)
-    replay = _replay_buffer(config)
+    agent = build_agent(config, eval_env.observation_spec, eval_env.action_spec, device)
+    replay = _replay_buffer(config, device)
     state = checkpoint.Progress()
     if checkpoint.has_checkpoint(run_dir):
         state = checkpoint.load_checkpoint(run_dir, agent, replay)
         _LOG.info("resuming %s at %d frames", run_dir, state.frames)
+    _LOG.info("learner on %s", device)
     logger = _logger(config, run_dir)
     loop = _Loop(config, run_dir, agent, replay, logger, eval_env)
     try:
@@ -150,7 +152,8 @@ def _check_resumable(run_dir: Path, config: TrainConfig) -> None:
     if not checkpoint.has_checkpoint(run_dir) or not saved_path.is_file():
         return
     saved = load_config(saved_path)
-    ignore = {"total_frames"}
+    # More frames extend a run; the device is where it happens to run now.
+    ignore = {"total_frames", "device"}
     if _without(to_dict(saved), ignore) != _without(to_dict(config), ignore):
         raise RunDirError(
             f"{run_dir} holds a checkpoint of a different configuration ({saved_path}); "
@@ -166,11 +169,15 @@ def _without(data: dict[str, Any], ignore: set[str]) -> dict[str, Any]:
     }
 
 
-def _replay_buffer(config: TrainConfig) -> TensorDictReplayBuffer | None:
+def _replay_buffer(
+    config: TrainConfig, device: torch.device | str = "cpu"
+) -> TensorDictReplayBuffer | None:
     if config.algorithm == "ppo":
         return None
+    # On the learner's device: a batch is drawn there with no copy per gradient step.
     return TensorDictReplayBuffer(
-        storage=LazyTensorStorage(config.replay.size), batch_size=config.optim.batch_size
+        storage=LazyTensorStorage(config.replay.size, device=device),
+        batch_size=config.optim.batch_size,
     )
 
 
@@ -217,7 +224,10 @@ def make_collector(
     elif config.env.num_envs == 1:
         collector = Collector(create[0], agent.exploration_policy, **local)
     else:
-        collector = MultiSyncCollector(create, agent.exploration_policy, **local)
+        # num_threads: torchrl would give the learner max(1, threads - workers) instead.
+        collector = MultiSyncCollector(
+            create, agent.exploration_policy, num_threads=config.torch_threads, **local
+        )
     collector.set_seed(seed)
     return collector
 
@@ -278,6 +288,7 @@ class _Loop:
                 for batch in collector:
                     frames = state.frames + batch.numel()
                     state = self._learn(batch, state, frames)
+                    self.agent.sync_env_policy()
                     collector.update_policy_weights_()
                     stats = self._log_batch(batch, state)
                     bar.update(batch.numel())
@@ -285,6 +296,8 @@ class _Loop:
                     self._periodic(state, frames - batch.numel())
         finally:
             collector.shutdown()
+            # A multi-process collector's shutdown hands its workers' threads to this process.
+            torch.set_num_threads(cfg.torch_threads)
             bar.close()
         checkpoint.save_checkpoint(self.run_dir, self.agent, state, self.replay)
         return state
@@ -298,7 +311,7 @@ class _Loop:
             losses = self._ppo_update(batch)
         else:
             assert self.replay is not None
-            self.replay.extend(flat)
+            self.replay.extend(self.agent.transitions(flat))
             losses = []
             if frames >= cfg.collector.init_random_frames:
                 count = cfg.optim.updates_per_batch or flat.numel()
@@ -320,8 +333,8 @@ class _Loop:
         assert self.agent.advantage is not None
         # GAE runs along time (the last batch dim) before several envs' batches are flattened.
         with torch.no_grad():
-            batch = self.agent.advantage(batch)
-        flat = batch.reshape(-1)
+            batch = self.agent.advantage(batch.to(self.agent.device))
+        flat = self.agent.transitions(batch.reshape(-1))
         losses = []
         for _ in range(ppo.epochs):
             for index in torch.randperm(flat.numel()).split(ppo.minibatch_size):
@@ -367,7 +380,7 @@ class _Loop:
         cfg = self.config
         episodes = rollout_episodes(
             self.eval_env,
-            self.agent.actor,
+            self.agent.env_actor,
             trials=cfg.eval.trials,
             max_steps=cfg.eval.max_steps,
             seed=cfg.seed + EVAL_SEED_OFFSET,
