@@ -38,6 +38,7 @@ class EpisodeKeys:
         tip_slice: (start, stop) of the tip position within that entry.
         success: bool entry, True on the step that reached the target.
         wall_force: wire–wall contact force in N.
+        tip_force: wall force on the shaped tip in N.
         distance: distance from the tip to the target along the centerline in m.
         control_timestep_s: simulated seconds per step (completion time = steps × this).
         failure_code: int entry, 0 or the 1-based index of the failure reason in ``failures``.
@@ -48,6 +49,7 @@ class EpisodeKeys:
     tip_slice: tuple[int, int] = (0, 3)
     success: str = "is_success"
     wall_force: str = "wall_force"
+    tip_force: str = "tip_force"
     distance: str = "manifold_distance"
     control_timestep_s: float = DEFAULT_CONTROL_TIMESTEP_S
     failure_code: str = "failure_code"
@@ -98,6 +100,8 @@ def episode_from_rollout(rollout: TensorDictBase, keys: EpisodeKeys = EpisodeKey
         tips_np = np.zeros((steps + 1, 3))
     success = bool(nxt[keys.success].any()) if keys.success in present else False
     forces = nxt[keys.wall_force].reshape(-1).numpy() if keys.wall_force in present else np.zeros(0)
+    tip_forces = (nxt[keys.tip_force].reshape(-1).numpy() if keys.tip_force in present
+                  else np.zeros(0))
     code = int(nxt[keys.failure_code][-1]) if keys.failure_code in present else 0
     shortest = 0.0
     if keys.distance in present:
@@ -111,6 +115,7 @@ def episode_from_rollout(rollout: TensorDictBase, keys: EpisodeKeys = EpisodeKey
         shortest_path_m=shortest,
         episode_return=float(nxt["reward"].sum()),
         failure=keys.failures[code - 1] if code else "",
+        tip_forces=tip_forces,
     )
 
 

@@ -8,6 +8,8 @@
   mean over episodes of S_i · l_i / max(p_i, l_i), with l_i the shortest path (the geodesic
   distance from the start tip to the target along the centerline) and p_i the tip path length.
 * ``max_wall_force_n``: largest wire–wall contact force seen in any episode.
+* ``max_tip_force_n``: largest wall force on the shaped tip (the safety signal whose limit
+  ends an episode) seen in any episode; 0 when the environment does not report it.
 * ``mean_return``: mean sum of rewards.
 * ``outcomes``: how the episodes ended, counted: ``success``, a failure reason (e.g.
   ``tip_force``) or ``timeout`` (neither before the step limit).
@@ -33,6 +35,7 @@ METRIC_KEYS: tuple[str, ...] = (
     "mean_path_length_m",
     "spl",
     "max_wall_force_n",
+    "max_tip_force_n",
     "mean_return",
     "outcomes",
     "trials",
@@ -51,6 +54,7 @@ class Episode:
         shortest_path_m: geodesic distance from the start tip to the target in m.
         episode_return: sum of rewards.
         failure: why the episode failed (the task's failure reason), or "" if it did not.
+        tip_forces: (T,) wall force on the shaped tip per step in N (empty: not reported).
     """
 
     tip_positions: NDArray[np.float64]
@@ -60,6 +64,8 @@ class Episode:
     shortest_path_m: float
     episode_return: float = 0.0
     failure: str = ""
+    tip_forces: NDArray[np.float64] = dataclasses.field(
+        default_factory=lambda: np.zeros(0))
 
     @property
     def outcome(self) -> str:
@@ -74,6 +80,7 @@ class Episode:
             )
         object.__setattr__(self, "tip_positions", tips)
         object.__setattr__(self, "wall_forces", np.asarray(self.wall_forces, dtype=np.float64))
+        object.__setattr__(self, "tip_forces", np.asarray(self.tip_forces, dtype=np.float64))
 
 
 def path_length(tip_positions: NDArray[np.float64]) -> float:
@@ -96,6 +103,7 @@ def summarize(episodes: Sequence[Episode]) -> dict[str, float | int | dict[str, 
     lengths = [path_length(e.tip_positions) for e in episodes]
     times = [e.duration_s for e in episodes if e.success]
     forces = [float(e.wall_forces.max()) for e in episodes if e.wall_forces.size]
+    tip_forces = [float(e.tip_forces.max()) for e in episodes if e.tip_forces.size]
     return {
         "success_rate": float(np.mean([e.success for e in episodes])),
         "mean_completion_time_s": float(np.mean(times)) if times else None,
@@ -109,6 +117,7 @@ def summarize(episodes: Sequence[Episode]) -> dict[str, float | int | dict[str, 
             )
         ),
         "max_wall_force_n": max(forces) if forces else 0.0,
+        "max_tip_force_n": max(tip_forces) if tip_forces else 0.0,
         "mean_return": float(np.mean([e.episode_return for e in episodes])),
         "outcomes": dict(sorted(Counter(e.outcome for e in episodes).items())),
         "trials": len(episodes),
