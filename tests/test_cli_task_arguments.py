@@ -198,3 +198,32 @@ def test_extra_observations_extend_the_paper_set_only() -> None:
         EnvConfig(observations="generalist", extra_observations=("rotation",))
     with pytest.raises(ConfigError, match=r"env\.observations must be one of"):
         EnvConfig(observations="everything")
+
+
+def test_generalisation_suite_on_a_tiny_budget(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    """``evaluate RUN --suite generalisation``: the policy and the reference rows per group,
+    a per-target breakdown, and a missing stEVE folder skipped with a message."""
+    run = tmp_path / "run"
+    args = ["train", "sac", "--observations", "generalist", "--frames", "30", "--out", str(run),
+            "--no-progress", "--set", "collector.frames_per_batch=30",
+            "--set", "collector.init_random_frames=30", "--set", "network.hidden_sizes=[8]",
+            "--set", "eval.trials=1", "--set", "eval.max_steps=3"]
+    assert _cli(args, capsys)[0] == 0
+    status, out, err = _cli(["evaluate", str(run), "--suite", "generalisation", "--trees", "1",
+                             "--max-steps", "3", "--steve", str(tmp_path / "none"), "--json",
+                             "--no-progress"], capsys)
+    assert status == 0, err
+    result = json.loads(out)
+    rows = result["rows"]
+    assert list(rows) == ["policy (run)", "scripted expert (privileged)", "constant push [1, 0]",
+                          next(r for r in rows if r.startswith("best constant")),
+                          "uniform random"]
+    for groups in rows.values():
+        assert set(groups) == {"held_out_trees", "phantoms"}  # stEVE absent: skipped
+        assert {"success_rate", "spl", "max_tip_force_n"} <= set(groups["phantoms"])
+    assert groups["phantoms"]["trials"] == 4
+    assert "simplified_phantom task_a" in result["targets"]
+    assert any(label.startswith("left_coronary_01000 ") for label in result["targets"])
+    assert "steve: skipped" in caplog.text

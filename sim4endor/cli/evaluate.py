@@ -23,12 +23,30 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     parser.add_argument("run_dir", type=Path, help="folder written by `sim4endor train --out`")
-    parser.add_argument("--trials", type=arg_types.positive_int, default=10,
-                        help="episodes (default: 10)")
+    parser.add_argument("--trials", type=arg_types.positive_int,
+                        help="episodes (default: 10; with --suite, per case: 1)")
     parser.add_argument("--seed", type=arg_types.seed, help="evaluation seed (default: the run's)")
     parser.add_argument("--domain", help="evaluate on another domain (default: the run's)")
     parser.add_argument("--task", help="task of --domain")
     arg_types.add_task_arguments(parser)
+    suite = parser.add_argument_group(
+        "generalisation suite",
+        "--suite generalisation runs the policy zero-shot on held-out generated coronary trees "
+        "(every distal target), both phantoms' targets and the stEVE anatomy, beside the "
+        "scripted expert and open-loop baselines (docs/training.md)")
+    suite.add_argument("--suite", choices=("generalisation",),
+                       help="run the named evaluation suite instead of the run's task")
+    suite.add_argument("--trees", type=arg_types.positive_int, default=20,
+                       help="held-out coronary trees (default: 20)")
+    suite.add_argument("--first-seed", type=arg_types.seed, default=1000,
+                       help="seed of the first held-out tree (default: 1000)")
+    suite.add_argument("--steve", type=Path, default=None, metavar="DIR",
+                       help="stEVE anatomy folder (default: $SIM4ENDOR_SHARED/data/"
+                            "steve_bench_dualdevicenav, or ../shared/...; skipped if absent)")
+    suite.add_argument("--max-steps", type=arg_types.positive_int, default=800,
+                       help="step cap per episode (default: 800, the coronary domain's 40 s)")
+    suite.add_argument("--no-baselines", action="store_true",
+                       help="only the policy, no reference rows")
     parser.add_argument("--json", action="store_true", help="print one JSON line")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.set_defaults(func=run)
@@ -41,10 +59,12 @@ def run(args: argparse.Namespace) -> int:
     from sim4endor.rl.runs import evaluate_run
 
     torch.set_num_threads(1)  # small networks: one thread is fastest and leaves cores free
+    if args.suite:
+        return _run_suite(args)
     other_task = arg_types.task_arguments(args)
     if args.domain or args.task:
         other_task.update({k: v for k, v in (("domain", args.domain), ("task", args.task)) if v})
-    metrics = evaluate_run(args.run_dir, trials=args.trials, seed=args.seed,
+    metrics = evaluate_run(args.run_dir, trials=args.trials or 10, seed=args.seed,
                            task_arguments=other_task, progress=not args.no_progress)
     if args.json:
         print(json.dumps(metrics))  # noqa: T201
@@ -52,4 +72,28 @@ def run(args: argparse.Namespace) -> int:
         width = max(len(key) for key in metrics)
         for key, value in metrics.items():
             print(f"{key:<{width}}  {'n/a' if value is None else value}")  # noqa: T201
+    return 0
+
+
+def _run_suite(args: argparse.Namespace) -> int:
+    """Runs the generalisation suite and prints its table (or one JSON line)."""
+    import dataclasses
+
+    from sim4endor.rl import generalisation
+
+    config = generalisation.SuiteConfig(trees=args.trees, first_seed=args.first_seed,
+                                        trials=args.trials or 1, max_steps=args.max_steps)
+    if args.wire:
+        config = dataclasses.replace(config, wire=args.wire)
+    if args.seed is not None:
+        config = dataclasses.replace(config, seed=args.seed)
+    if args.steve is not None:
+        config = dataclasses.replace(config, steve_dir=args.steve)
+    result = generalisation.evaluate_suite(
+        args.run_dir, config, with_baselines=not args.no_baselines,
+        progress=not args.no_progress)
+    if args.json:
+        print(json.dumps(result))  # noqa: T201
+    else:
+        print(generalisation.markdown(result["rows"]))  # noqa: T201
     return 0

@@ -114,6 +114,12 @@ class _BaselinePolicy(TensorDictModuleBase):
         return tensordict
 
 
+def policy(baseline: Baseline, env: EnvBase) -> TensorDictModuleBase:
+    """The acting module of ``baseline`` in ``env`` (a sim4endor TorchRL environment), for
+    :func:`sim4endor.rl.evaluation.rollout_episodes`."""
+    return _BaselinePolicy(baseline, env)
+
+
 def evaluate_baseline(
     domain: str, task: str, baseline: Baseline, *, episodes: int, seed: int = REPORT_SEED,
     max_steps: int = EvalConfig().max_steps,
@@ -134,7 +140,7 @@ def evaluate_baseline(
     """
     env = sim4endor_env(EnvConfig(domain=domain, task=task), seed, evaluation=True)
     try:
-        runs = rollout_episodes(env, _BaselinePolicy(baseline, env), trials=episodes,
+        runs = rollout_episodes(env, policy(baseline, env), trials=episodes,
                                 max_steps=max_steps, seed=seed)
     finally:
         env.close()

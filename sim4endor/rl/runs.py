@@ -47,12 +47,13 @@ def load_agent(run_dir: Path, make_env: EnvFactory | None = None) -> tuple[Train
         config.seed + EVAL_SEED_OFFSET
     )
     try:
-        return config, _restored_agent(run_dir, config, env)
+        return config, load_agent_for(run_dir, config, env)
     finally:
         env.close()
 
 
-def _restored_agent(run_dir: Path, config: TrainConfig, env: EnvBase) -> Agent:
+def load_agent_for(run_dir: Path, config: TrainConfig, env: EnvBase) -> Agent:
+    """The run's latest agent, its networks sized by ``env``'s specs."""
     agent = build_agent(config, env.observation_spec, env.action_spec)
     checkpoint.load_checkpoint(run_dir, agent)
     return agent
@@ -94,7 +95,7 @@ def evaluate_run(
     env_config = dataclasses.replace(config.env, **(task_arguments or {}))
     env = (make_env or env_factory(env_config, evaluation=True))(seed)
     try:
-        agent = _restored_agent(run_dir, config, env)
+        agent = load_agent_for(run_dir, config, env)
         episodes = rollout_episodes(
             env,
             agent.env_actor,

@@ -1,0 +1,282 @@
+"""The generalisation suite: a policy, zero-shot, on anatomies it was not trained on.
+
+Three groups of (anatomy, target) cases, all with one wire preset (default ``workhorse``):
+
+* ``held_out_trees``: every distal target of ``trees`` generated coronary trees, seeds
+  ``first_seed`` on (1000 on by default, a range no training pool or test uses);
+* ``phantoms``: targets A and B of both shipped phantoms;
+* ``steve``: every target of the real stEVE anatomy (``steve_dir``), built once into the
+  cache; skipped with a message when its folder is absent.
+
+Each case runs ``trials`` deterministic episodes. Besides the policy, reference rows run the
+same cases (:mod:`sim4endor.rl.baselines`): the scripted expert, the constant push ``[1, 0]``,
+the best constant action of the baselines' grid (chosen on other trees and start seeds than the
+ones reported) and uniform random actions. Per group the rows give success, mean completion
+time, SPL and the largest tip force.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import logging
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from tensordict.nn import TensorDictModuleBase
+from torchrl.envs import EnvBase
+from tqdm.auto import tqdm
+
+from sim4endor.rl import baselines
+from sim4endor.rl.config import EnvConfig
+from sim4endor.rl.envs import sim4endor_env
+from sim4endor.rl.evaluation import rollout_episodes
+from sim4endor.rl.metrics import Episode, summarize
+
+_LOG = logging.getLogger(__name__)
+
+#: The groups, in the order they are reported.
+GROUPS: tuple[str, ...] = ("held_out_trees", "phantoms", "steve")
+#: The folder of the stEVE anatomy when ``--steve`` is not given.
+DEFAULT_STEVE_DIR = Path(os.environ.get("SIM4ENDOR_SHARED", "../shared")) / "data" / \
+    "steve_bench_dualdevicenav"
+#: The phantoms and tasks of the ``phantoms`` group.
+PHANTOMS: tuple[str, ...] = ("simplified_phantom", "vascular_phantom")
+PHANTOM_TASKS: tuple[str, ...] = ("task_a", "task_b")
+#: First tree seed the best constant action is chosen on (apart from the reported trees).
+SELECTION_FIRST_SEED = 2000
+
+#: Builds the acting module of an environment (a policy's or a baseline's).
+ActorFactory = Callable[[EnvBase], TensorDictModuleBase]
+
+
+@dataclasses.dataclass(frozen=True)
+class SuiteConfig:
+    """What the suite runs.
+
+    Attributes:
+        trees: Generated coronary trees of the ``held_out_trees`` group.
+        first_seed: Seed of the first of them.
+        wire: Guidewire preset of every case.
+        trials: Episodes per case.
+        seed: Start-state seed of every case's episodes.
+        max_steps: Step cap per episode (the coronary domain's 40 s at 20 Hz; the tasks'
+            own time limits also apply).
+        steve_dir: Folder of the stEVE anatomy (its mesh and centerlines); ``None`` or an
+            absent folder skips that group.
+    """
+
+    trees: int = 20
+    first_seed: int = 1000
+    wire: str = "workhorse"
+    trials: int = 1
+    seed: int = baselines.REPORT_SEED
+    max_steps: int = 800
+    steve_dir: Path | None = DEFAULT_STEVE_DIR
+
+
+@dataclasses.dataclass(frozen=True)
+class Case:
+    """One anatomy and target: the environment to build and its label in the breakdown."""
+
+    group: str
+    label: str
+    env: EnvConfig
+
+
+def tree_cases(first_seed: int, trees: int, base: EnvConfig) -> list[Case]:
+    """Every distal target of the coronary trees ``first_seed ... first_seed + trees - 1``."""
+    from sim4endor.tasks.coronary import side_of
+    from sim4endor.vessels.generators.coronary_arteries import (
+        CoronaryArteriesConfig,
+        coronary_arteries,
+    )
+
+    cases = []
+    for seed in range(first_seed, first_seed + trees):
+        side = side_of(seed, "both")
+        tree = coronary_arteries(CoronaryArteriesConfig(side=side), seed=seed)
+        for target in sorted(tree.targets):
+            env = dataclasses.replace(base, domain="coronary", task="navigate", pool_seed=seed,
+                                      pool_size=1, target=target)
+            cases.append(Case("held_out_trees", f"{side}_coronary_{seed:05d} {target}", env))
+    return cases
+
+
+def suite_cases(config: SuiteConfig, observations: str) -> list[Case]:
+    """The cases of every group for a policy observing ``observations``."""
+    base = EnvConfig(observations=observations, wire=config.wire)
+    cases = tree_cases(config.first_seed, config.trees, base)
+    cases += [Case("phantoms", f"{phantom} {task}",
+                   dataclasses.replace(base, domain=phantom, task=task))
+              for phantom in PHANTOMS for task in PHANTOM_TASKS]
+    steve = steve_vessel(config.steve_dir)
+    if steve is None:
+        _LOG.warning("steve: skipped, no stEVE anatomy at %s (set SIM4ENDOR_SHARED to the "
+                     "shared/ folder or pass --steve DIR)", config.steve_dir)
+        return cases
+    for target in sorted(steve.targets):
+        env = dataclasses.replace(base, domain="vessel", task="navigate", vessel=str(steve.root),
+                                  target=target)
+        cases.append(Case("steve", f"steve {target}", env))
+    return cases
+
+
+def steve_vessel(folder: Path | None) -> Any:
+    """The stEVE anatomy built into the cache (once), or None when ``folder`` lacks it."""
+    if folder is None or not (folder / "vessel_architecture_collision.obj").is_file():
+        return None
+    from sim4endor.tasks.anatomy import default_cache_dir
+    from sim4endor.vessels.build import build_vessel
+    from sim4endor.vessels.meshio import read_mesh
+    from sim4endor.vessels.register import RegistrationParams
+    from sim4endor.vessels.slicer import read_slicer_centerline
+
+    return build_vessel(
+        read_mesh(folder / "vessel_architecture_collision.obj"), name="steve_dualdevicenav",
+        out_dir=default_cache_dir("steve") / "steve_dualdevicenav", units="mm",
+        centerline=read_slicer_centerline([folder / "centerlines"]),
+        registration=RegistrationParams(),
+        source="stEVE_bench dualdevicenav (lkarstensen/stEVE_bench)",
+        license_text=(folder / "LICENSE").read_text(), progress=False,
+    )
+
+
+class CaseEnvironments:
+    """Each case's environment, built the first time a policy needs it and shared by every
+    policy the suite runs (building a coronary case costs about half a second; an episode
+    reseeds its environment, so sharing changes no result). ``close`` closes them all."""
+
+    def __init__(self) -> None:
+        self._envs: dict[str, EnvBase] = {}
+
+    def __getitem__(self, case: Case) -> EnvBase:
+        if case.label not in self._envs:
+            self._envs[case.label] = sim4endor_env(case.env, 0, evaluation=True)
+        return self._envs[case.label]
+
+    def close(self) -> None:
+        """Closes every environment built."""
+        for env in self._envs.values():
+            env.close()
+        self._envs.clear()
+
+
+def run_cases(cases: Sequence[Case], make_actor: ActorFactory, config: SuiteConfig,
+              envs: CaseEnvironments, label: str = "", progress: bool = False
+              ) -> dict[str, list[Episode]]:
+    """Runs ``config.trials`` episodes of each case; returns the episodes per case label."""
+    episodes: dict[str, list[Episode]] = {}
+    for case in tqdm(cases, desc=label or "suite", unit="case", disable=not progress):
+        env = envs[case]
+        episodes[case.label] = rollout_episodes(
+            env, make_actor(env), trials=config.trials, max_steps=config.max_steps,
+            seed=config.seed)
+    return episodes
+
+
+def group_metrics(cases: Sequence[Case], episodes: dict[str, list[Episode]]
+                  ) -> dict[str, dict[str, Any]]:
+    """The :func:`~sim4endor.rl.metrics.summarize` metrics of each group that has episodes."""
+    out = {}
+    for group in GROUPS:
+        runs = [e for case in cases if case.group == group for e in episodes[case.label]]
+        if runs:
+            out[group] = summarize(runs)
+    return out
+
+
+def best_constant_action(config: SuiteConfig, observations: str, envs: CaseEnvironments,
+                         progress: bool = False) -> baselines.ConstantAction:
+    """The constant action of :data:`baselines.CONSTANT_GRID` that succeeds most often on
+    four trees (seeds from :data:`SELECTION_FIRST_SEED`) and the phantoms' targets, started
+    from :data:`baselines.SELECTION_SEED`: cases and starts apart from the reported ones."""
+    selection = dataclasses.replace(config, seed=baselines.SELECTION_SEED, trials=1)
+    base = EnvConfig(observations=observations, wire=config.wire)
+    cases = [Case("phantoms", f"{phantom} {task}",
+                  dataclasses.replace(base, domain=phantom, task=task))
+             for phantom in PHANTOMS for task in PHANTOM_TASKS]
+    cases += tree_cases(SELECTION_FIRST_SEED, min(config.trees, 4), base)
+
+    def successes(action: baselines.ConstantAction) -> int:
+        runs = run_cases(cases, functools.partial(_baseline_actor, action), selection, envs,
+                         label=action.label, progress=progress)
+        return sum(e.success for episodes in runs.values() for e in episodes)
+
+    tried = [baselines.ConstantAction(insert, rotate)
+             for insert, rotate in baselines.CONSTANT_GRID]
+    scores = {action: successes(action) for action in tried}
+    return max(tried, key=lambda action: scores[action])  # ties: the first in grid order
+
+
+def reference_rows(config: SuiteConfig, observations: str, cases: Sequence[Case],
+                   envs: CaseEnvironments, progress: bool = False
+                   ) -> dict[str, dict[str, dict[str, Any]]]:
+    """The baselines' metrics per group: expert, constant push, best constant, random."""
+    chosen = best_constant_action(config, observations, envs, progress)
+    rows: dict[str, dict[str, dict[str, Any]]] = {}
+    for baseline, label in (
+        (baselines.ScriptedExpert(), baselines.ScriptedExpert().label),
+        (baselines.ConstantAction(1.0, 0.0), "constant push [1, 0]"),
+        (chosen, f"best constant ({chosen.label})"),
+        (baselines.RandomActions(seed=config.seed), baselines.RandomActions().label),
+    ):
+        episodes = run_cases(cases, functools.partial(_baseline_actor, baseline), config, envs,
+                             label=label, progress=progress)
+        rows[label] = group_metrics(cases, episodes)
+    return rows
+
+
+def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool = True,
+                   progress: bool = False) -> dict[str, Any]:
+    """Runs a training run's deterministic policy (and the reference rows) on the suite.
+
+    Returns:
+        ``rows``: policy label → group → metrics (:func:`group_metrics`), the run first;
+        ``targets``: the run's success rate per case label (the per-target breakdown).
+    """
+    from sim4endor.rl.runs import load_agent_for, run_config
+
+    train_config = run_config(run_dir)
+    cases = suite_cases(config, train_config.env.observations)
+    actors: list[TensorDictModuleBase] = []
+
+    def run_actor(env: EnvBase) -> TensorDictModuleBase:
+        if not actors:  # the networks only depend on the specs, which every case shares
+            actors.append(load_agent_for(run_dir, train_config, env).env_actor)
+        return actors[0]
+
+    envs = CaseEnvironments()
+    try:
+        episodes = run_cases(cases, run_actor, config, envs, label=Path(run_dir).name,
+                             progress=progress)
+        rows = {f"policy ({Path(run_dir).name})": group_metrics(cases, episodes)}
+        if with_baselines:
+            rows.update(reference_rows(config, train_config.env.observations, cases, envs,
+                                       progress))
+    finally:
+        envs.close()
+    targets = {label: summarize(runs)["success_rate"] for label, runs in episodes.items()}
+    return {"rows": rows, "targets": targets}
+
+
+def _baseline_actor(baseline: baselines.Baseline, env: EnvBase) -> TensorDictModuleBase:
+    return baselines.policy(baseline, env)
+
+
+def markdown(rows: dict[str, dict[str, dict[str, Any]]]) -> str:
+    """One table row per (policy, group): success, mean time, SPL, largest tip force."""
+    lines = ["| policy | group | success | mean time (s) | SPL | max tip force (N) |",
+             "|---|---|---|---|---|---|"]
+    for policy, groups in rows.items():
+        for group, metrics in groups.items():
+            trials = metrics["trials"]
+            won = round(metrics["success_rate"] * trials)
+            time = metrics["mean_completion_time_s"]
+            lines.append(
+                f"| {policy} | {group} | {won}/{trials} ({100 * won / trials:.0f} %) | "
+                f"{'–' if time is None else f'{time:.2f}'} | {metrics['spl']:.2f} | "
+                f"{metrics['max_tip_force_n']:.2f} |")
+    return "\n".join(lines)
