@@ -1,6 +1,6 @@
 """What the wire tip sees in its own frame: the path ahead, the lumen around it, its motion.
 
-These are the entries of the ``generalist`` observation set (:mod:`sim4endor.tasks.config`).
+These are the entries of the ``generalist`` observation set (:mod:`sim4endor.observations`).
 Every vector is expressed in the **tip frame**: the body frame of the wire's distal segment,
 origin at the tip end. Its axes turn with the segment, so they carry both the tip's heading
 and its roll. Rotating or translating the anatomy together with the wire therefore leaves
@@ -25,6 +25,7 @@ from sim4endor.observations import PATH_POINTS, PATH_SPACING
 from sim4endor.vessels.centerline import CenterlineGraph, Projection
 
 FloatArray = NDArray[np.float64]
+
 
 @dataclass(frozen=True)
 class PathToTarget:
