@@ -64,3 +64,24 @@ def vessel_search_path() -> tuple[Path, ...]:
     """
     extra = os.environ.get(VESSEL_PATH_ENV, "")
     return (vessels_dir(), *(Path(p).expanduser() for p in extra.split(os.pathsep) if p))
+
+
+def policies_dir() -> Path:
+    """Returns the folder of the pretrained policies shipped with the package: one training
+    run folder per name (``config.yaml``, ``checkpoint/state.pt`` without the replay buffer,
+    ``MODEL_CARD.md``), loadable wherever a run folder is."""
+    return _PACKAGE_DIR / "policies"
+
+
+def policy_names() -> tuple[str, ...]:
+    """Names of the shipped pretrained policies, e.g. ``("generalist",)``."""
+    folder = policies_dir()
+    return tuple(sorted(p.name for p in folder.iterdir() if (p / "config.yaml").is_file())) \
+        if folder.is_dir() else ()
+
+
+def run_or_policy(spec: str | Path) -> Path:
+    """A shipped policy's folder for its name (``"generalist"``), else ``spec`` as a path."""
+    if str(spec) in policy_names():
+        return policies_dir() / str(spec)
+    return Path(spec)

@@ -227,3 +227,34 @@ def test_generalisation_suite_on_a_tiny_budget(
     assert "simplified_phantom task_a" in result["targets"]
     assert any(label.startswith("left_coronary_01000 ") for label in result["targets"])
     assert "steve: skipped" in caplog.text
+
+
+def test_a_shipped_policy_by_name_on_every_target_of_a_vessel_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A name under sim4endor/policies is a run folder: ``evaluate NAME --vessel DIR --json``
+    runs every target and never writes into the package; render and export take the name."""
+    from sim4endor import assets
+
+    shelf = tmp_path / "policies"
+    assert _cli(["train", "sac", "--observations", "generalist", "--frames", "30", "--out",
+                 str(shelf / "tiny"), "--no-progress",
+                 "--set", "collector.frames_per_batch=30",
+                 "--set", "collector.init_random_frames=30", "--set", "network.hidden_sizes=[8]",
+                 "--set", "eval.trials=1", "--set", "eval.max_steps=3"], capsys)[0] == 0
+    (shelf / "tiny" / "evaluation.json").unlink()
+    monkeypatch.setattr(assets, "policies_dir", lambda: shelf)
+    assert assets.policy_names() == ("tiny",)
+    vessel = str(vessels.load("simplified_phantom").root)
+    status, out, err = _cli(["evaluate", "tiny", "--vessel", vessel, "--trials", "1",
+                             "--json", "--no-progress"], capsys)
+    assert status == 0, err
+    metrics = json.loads(out)
+    assert {"success_rate", "mean_completion_time_s", "max_tip_force_n"} <= set(metrics)
+    assert sorted(metrics["targets"]) == ["A", "B"] and metrics["trials"] == 2
+    status, _, err = _cli(["evaluate", "tiny", "--vessel", vessel, "--target", "A",
+                           "--trials", "1", "--no-progress"], capsys)
+    assert status == 0, err
+    assert not (shelf / "tiny" / "evaluation.json").exists()  # the package is never written
+    status, out, err = _cli(["export", "tiny", "--out", str(tmp_path / "exported")], capsys)
+    assert status == 0 and (tmp_path / "exported" / "policy.json").is_file(), err

@@ -6,7 +6,9 @@ import argparse
 import json
 from pathlib import Path
 
+from sim4endor import assets
 from sim4endor.cli import args as arg_types
+from sim4endor.rl.metrics import describe
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -22,7 +24,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "wire or tree pool) only print them."
         ),
     )
-    parser.add_argument("run_dir", type=Path, help="folder written by `sim4endor train --out`")
+    parser.add_argument("run_dir", type=assets.run_or_policy, metavar="RUN_OR_POLICY",
+                        help="folder written by `sim4endor train --out`, or a shipped "
+                             "pretrained policy's name: "
+                             f"{', '.join(assets.policy_names()) or 'none'}")
     parser.add_argument("--trials", type=arg_types.positive_int,
                         help="episodes (default: 10; with --suite, per case: 1)")
     parser.add_argument("--seed", type=arg_types.seed, help="evaluation seed (default: the run's)")
@@ -61,11 +66,16 @@ def run(args: argparse.Namespace) -> int:
     torch.set_num_threads(1)  # small networks: one thread is fastest and leaves cores free
     if args.suite:
         return _run_suite(args)
+    if args.vessel is not None and args.target is None:
+        return _run_vessel(args)
     other_task = arg_types.task_arguments(args)
     if args.domain or args.task:
         other_task.update({k: v for k, v in (("domain", args.domain), ("task", args.task)) if v})
+    if args.vessel is not None and not (args.domain or args.task):
+        other_task.update(domain="vessel", task="navigate")  # a vessel folder's own domain
     metrics = evaluate_run(args.run_dir, trials=args.trials or 10, seed=args.seed,
-                           task_arguments=other_task, progress=not args.no_progress)
+                           task_arguments=other_task, progress=not args.no_progress,
+                           record=args.run_dir.parent != assets.policies_dir())
     if args.json:
         print(json.dumps(metrics))  # noqa: T201
     else:
@@ -96,4 +106,27 @@ def _run_suite(args: argparse.Namespace) -> int:
         print(json.dumps(result))  # noqa: T201
     else:
         print(generalisation.markdown(result["rows"]))  # noqa: T201
+    return 0
+
+
+def _run_vessel(args: argparse.Namespace) -> int:
+    """Every target of ``--vessel`` (``--trials`` each): the metrics over all of them and per
+    target, as a table or one JSON line."""
+    import dataclasses
+
+    from sim4endor.rl import generalisation
+
+    config = generalisation.SuiteConfig(trials=args.trials or 1)
+    if args.wire:
+        config = dataclasses.replace(config, wire=args.wire)
+    if args.seed is not None:
+        config = dataclasses.replace(config, seed=args.seed)
+    metrics = generalisation.evaluate_vessel(args.run_dir, args.vessel, config,
+                                             progress=not args.no_progress)
+    if args.json:
+        print(json.dumps(metrics))  # noqa: T201
+        return 0
+    for target, row in metrics["targets"].items():
+        print(f"{target:<12}  {describe(row)}")  # noqa: T201
+    print(f"{'all':<12}  {describe(metrics)}")  # noqa: T201
     return 0

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sim4endor import assets
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Adds the ``export`` subcommand."""
@@ -18,7 +20,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "experiments/export/run_onnx_policy.py runs the ONNX file with onnxruntime."
         ),
     )
-    parser.add_argument("run_dir", type=Path, help="folder written by `sim4endor train --out`")
+    parser.add_argument("run_dir", type=assets.run_or_policy, metavar="RUN_OR_POLICY",
+                        help="folder written by `sim4endor train --out`, a shipped pretrained "
+                             "policy's name, or an exported policy folder")
     parser.add_argument("--out", type=Path, required=True, help="folder to write the policy to")
     parser.add_argument("--onnx", action="store_true",
                         help="also write policy.onnx (needs the onnx extra)")

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from sim4endor import assets
 from sim4endor.cli import args as arg_types
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.config import EnvConfig
@@ -71,7 +72,7 @@ def load_policy(spec: str, seed: int, env: NavigationEnvironment | None = None) 
     if spec == "random":
         rng = np.random.default_rng(seed)
         return lambda _obs: rng.uniform(-1.0, 1.0, size=2)
-    path = Path(spec)
+    path = assets.run_or_policy(spec)
     if path.is_dir():
         return _run_policy(path)
     if not path.is_file():
@@ -269,7 +270,8 @@ def _env_config(args: argparse.Namespace) -> EnvConfig:
     if (args.domain is None) != (args.task is None):
         raise RenderArgumentError("Name both DOMAIN and TASK, or neither (with a run folder "
                                   "as --policy, whose task is then rendered).")
-    base = run_config(Path(args.policy)).env if Path(args.policy).is_dir() else None
+    policy = assets.run_or_policy(args.policy)
+    base = run_config(policy).env if policy.is_dir() else None
     if args.domain is None and base is None:
         raise RenderArgumentError(f"Name a DOMAIN and TASK to render --policy {args.policy} "
                                   "in (only a run folder brings its own).")
@@ -289,7 +291,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("task", nargs="?", help="suite task, e.g. task_a")
     parser.add_argument("--policy", default="insert",
                         help="'insert' (the default), 'random', 'expert' (scripted, reads the "
-                             "wire and centerline), a training run folder (its latest policy) or "
+                             "wire and centerline), a shipped pretrained policy's name (e.g. "
+                             "generalist), a training run folder (its latest policy) or "
                              "an exported TorchScript policy (.pt: a program, load only trusted "
                              "files; a run folder loads weights only)")
     parser.add_argument("--out", type=Path, default=Path("episode.mp4"), help="video file")

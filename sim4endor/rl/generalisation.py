@@ -237,21 +237,14 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
         ``rows``: policy label → group → metrics (:func:`group_metrics`), the run first;
         ``targets``: the run's success rate per case label (the per-target breakdown).
     """
-    from sim4endor.rl.runs import load_agent_for, run_config
+    from sim4endor.rl.runs import run_config
 
     train_config = run_config(run_dir)
     cases = suite_cases(config, train_config.env.observations)
-    actors: list[TensorDictModuleBase] = []
-
-    def run_actor(env: EnvBase) -> TensorDictModuleBase:
-        if not actors:  # the networks only depend on the specs, which every case shares
-            actors.append(load_agent_for(run_dir, train_config, env).env_actor)
-        return actors[0]
-
     envs = CaseEnvironments()
     try:
-        episodes = run_cases(cases, run_actor, config, envs, label=Path(run_dir).name,
-                             progress=progress)
+        episodes = run_cases(cases, run_actor(run_dir), config, envs,
+                             label=Path(run_dir).name, progress=progress)
         rows = {f"policy ({Path(run_dir).name})": group_metrics(cases, episodes)}
         if with_baselines:
             rows.update(reference_rows(config, train_config.env.observations, cases, envs,
@@ -260,6 +253,53 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
         envs.close()
     targets = {label: summarize(runs)["success_rate"] for label, runs in episodes.items()}
     return {"rows": rows, "targets": targets}
+
+
+def evaluate_vessel(run_dir: Path, vessel: str | Path, config: SuiteConfig,
+                    progress: bool = False) -> dict[str, Any]:
+    """Runs a run's deterministic policy ``config.trials`` times on every target of a vessel
+    folder (``sim4endor vessel build`` output or a vessel name) with ``config.wire``.
+
+    Returns:
+        The :func:`~sim4endor.rl.metrics.summarize` metrics over all targets, plus
+        ``targets``: the same metrics per target label.
+    """
+    from sim4endor import vessels
+    from sim4endor.rl.runs import run_config
+
+    train_env = run_config(run_dir).env
+    loaded = vessels.load(vessel)
+    base = dataclasses.replace(train_env, domain="vessel", task="navigate",
+                               vessel=str(loaded.root), wire=config.wire, pool_seed=None,
+                               pool_size=None, eval_pool_seed=None)
+    cases = [Case("vessel", target, dataclasses.replace(base, target=target))
+             for target in sorted(loaded.targets)]
+    envs = CaseEnvironments()
+    try:
+        episodes = run_cases(cases, run_actor(run_dir), config, envs,
+                             label=loaded.name, progress=progress)
+    finally:
+        envs.close()
+    every = [e for runs in episodes.values() for e in runs]
+    return {**summarize(every),
+            "targets": {label: summarize(runs) for label, runs in episodes.items()}}
+
+
+def run_actor(run_dir: Path) -> ActorFactory:
+    """The acting module of a run's latest policy, built for the first environment it is
+    given and reused for the others (the networks depend only on the specs, which the cases
+    of one observation set share)."""
+    from sim4endor.rl.runs import load_agent_for, run_config
+
+    train_config = run_config(run_dir)
+    actors: list[TensorDictModuleBase] = []
+
+    def actor(env: EnvBase) -> TensorDictModuleBase:
+        if not actors:
+            actors.append(load_agent_for(run_dir, train_config, env).env_actor)
+        return actors[0]
+
+    return actor
 
 
 def _baseline_actor(baseline: baselines.Baseline, env: EnvBase) -> TensorDictModuleBase:

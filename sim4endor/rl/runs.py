@@ -68,6 +68,7 @@ def evaluate_run(
     make_env: EnvFactory | None = None,
     task_arguments: Mapping[str, Any] | None = None,
     progress: bool = False,
+    record: bool = True,
 ) -> dict[str, Any]:
     """Evaluates the latest policy of ``run_dir`` and writes ``evaluation.json`` there.
 
@@ -85,6 +86,8 @@ def evaluate_run(
         task_arguments: :class:`~sim4endor.rl.config.EnvConfig` fields replacing the run's
             (``domain``, ``task``, ``vessel``, ``target``, ``wire``, ``pool_seed``, ...).
         progress: show a progress bar over the episodes.
+        record: write ``evaluation.json`` (never for a shipped policy: its folder is part of
+            the installed package).
 
     Returns:
         The metrics of :func:`sim4endor.rl.metrics.summarize` plus ``frames`` and
@@ -108,7 +111,7 @@ def evaluate_run(
         env.close()
     # The trainer's own record, so a re-evaluation keeps the run's training time in the tables.
     metrics = evaluation_record(checkpoint.load_progress(run_dir), episodes)
-    if not task_arguments:
+    if record and not task_arguments:
         write_final_evaluation(run_dir, metrics)
     return metrics
 
