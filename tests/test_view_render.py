@@ -100,3 +100,17 @@ def test_render_writes_a_video(tmp_path: Path) -> None:
     frames = [frame for frame in imageio.get_reader(out)]
     assert len(frames) == 11 and frames[0].shape == (128, 160, 3)
     assert not np.array_equal(frames[0], frames[-1])
+
+
+def test_a_policy_drives_the_viewer_until_a_key_takes_over() -> None:
+    env = suite.load("simplified_phantom", "task_a")
+    session = view.TeleopSession(env, policy=render.load_policy("insert", 0))
+    assert "policy driving" in session.status()
+    session.tick()
+    assert env.task.step_info()["insertion_command"] > 0  # the policy pushed
+    session.on_key(view.KEY_DOWN)
+    inserted = env.task.step_info()["insertion_command"]
+    session.tick()
+    assert env.task.step_info()["insertion_command"] < inserted  # the key pulled back
+    session.on_key(view.KEY_S)  # hands back to the policy
+    assert "policy driving" in session.status()

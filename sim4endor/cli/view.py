@@ -28,11 +28,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from sim4endor import assets
 from sim4endor._atomic import atomic_write_bytes
 from sim4endor.cli import args as arg_types
 from sim4endor.cli.render import (
     TARGET_RGBA,
+    Policy,
     add_sphere,
+    load_policy,
     state_vector,
     status_text,
     top_down_pose,
@@ -78,9 +81,11 @@ class TeleopSession:
     control period, so the session works (and is tested) without a window.
     """
 
-    def __init__(self, env: NavigationEnvironment, record: bool = False) -> None:
-        """Starts the first episode."""
+    def __init__(self, env: NavigationEnvironment, record: bool = False,
+                 policy: Policy | None = None) -> None:
+        """Starts the first episode; with ``policy`` it drives while no key command is set."""
         self.env = env
+        self.policy = policy
         self.speed = np.zeros(2)
         self.recording = Recording() if record else None
         self._episode = 0
@@ -116,7 +121,11 @@ class TeleopSession:
             self.step = 0
             return
         observation = state_vector(self.timestep.observation)
-        action = self.speed.copy()
+        # A key command overrides the policy until S sets the speeds back to zero.
+        if self.policy is not None and not self.speed.any():
+            action = np.asarray(self.policy(observation), dtype=float)
+        else:
+            action = self.speed.copy()
         self.timestep = self.env.step(action)
         self.step += 1
         self.last_reward = float(self.timestep.reward)
@@ -133,9 +142,11 @@ class TeleopSession:
 
     def status(self) -> str:
         """Returns the status lines shown in the viewer."""
-        return status_text(self.env, self.step, self.last_reward, self.total) + (
-            f"\ncommand insert {self.speed[0]:+.2f} rotate {self.speed[1]:+.2f}"
-        )
+        if self.policy is not None and not self.speed.any():
+            command = "policy driving (arrow keys take over, S hands back)"
+        else:
+            command = f"command insert {self.speed[0]:+.2f} rotate {self.speed[1]:+.2f}"
+        return status_text(self.env, self.step, self.last_reward, self.total) + "\n" + command
 
 
 def run_viewer(args: argparse.Namespace) -> int:
@@ -147,10 +158,15 @@ def run_viewer(args: argparse.Namespace) -> int:
     import mujoco.viewer
 
     from sim4endor import suite
+    from sim4endor.rl.runs import run_config
 
-    config = arg_types.env_config(args)
+    source = assets.run_or_policy(args.policy) if args.policy else None
+    # A run or shipped policy brings its observation set (and wire, ...); the flags change it.
+    base = run_config(source).env if source is not None and source.is_dir() else None
+    config = arg_types.env_config(args, base)
     env = suite.load(config.domain, config.task, config.task_kwargs(args.seed))
-    session = TeleopSession(env, record=args.record is not None)
+    policy = load_policy(args.policy, args.seed, env) if args.policy else None
+    session = TeleopSession(env, record=args.record is not None, policy=policy)
     physics = env.physics
     period = env.control_timestep()
     try:
@@ -190,6 +206,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--reward", choices=("manifold", "euclidean"),
                         help="progress distance (default: manifold)")
     arg_types.add_task_arguments(parser)
+    parser.add_argument("--policy", default=None,
+                        help="a policy that drives while no key command is set: 'expert', a "
+                             "shipped policy's name (e.g. generalist), a run folder or an "
+                             "exported .pt (as render --policy)")
     parser.add_argument("--record", type=Path, default=None,
                         help="save the demonstration to this .npz file")
     parser.set_defaults(func=run_viewer, renders=True)
