@@ -267,9 +267,22 @@ class GuidewirePhysics(dm_mujoco.Physics):
         self.set_driver_targets(insertion, rotation)
         for address, value in zip(self._indices().joint_qpos, self.driver_targets(), strict=True):
             self.data.qpos[address] = value
+        if _scalar(self.named.model.numeric_data[names.TIP_STRAIGHT_AT_START]):
+            self._straighten_wire()
         # Body and site positions follow at once, so the tip can be read inside dm_control's
         # reset_context (whose forward pass only runs when the block exits).
         mujoco.mj_kinematics(self.model.ptr, self.data.ptr)
+
+    def _straighten_wire(self) -> None:
+        """Turns every wire joint against its body's rest turn: the wire, pre-bent tip
+        included, lies straight along the driver axis, and the rod's elasticity, whose rest
+        shape is the model's, bends the tip back as the lumen lets it."""
+        model = self.model
+        for body in self._indices().wire_bodies[1:]:
+            # A ball joint's rotation follows its body's frame: undoing the frame's turn
+            # (a unit quaternion's inverse is its conjugate) aligns the body with its parent.
+            address = model.jnt_qposadr[model.body_jntadr[body]]
+            mujoco.mju_negQuat(self.data.qpos[address:address + 4], model.body_quat[body])
 
     def insertion_force(self) -> float:
         """Force (N) the insertion servo applies to the carriage now; positive pushes the wire

@@ -136,6 +136,31 @@ def test_the_coronary_domain_builds_a_tree_and_steps(tmp_path: Path) -> None:
     assert env.task.step_info()["failure"] == ""
 
 
+def tip_bend_deg(physics) -> float:
+    """Angle (degrees) between the wire's body axis just proximal of the tip and its last
+    segment."""
+    points = physics.wire_points()
+    base = points[physics.tip_start_index()] - points[physics.tip_start_index() - 2]
+    last = points[-1] - points[-2]
+    cos = base @ last / (np.linalg.norm(base) * np.linalg.norm(last))
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+
+def test_a_tip_shaped_wider_than_the_catheter_starts_straight_and_takes_its_shape_outside(
+        tmp_path: Path) -> None:
+    # 3 mm at 60 degrees is 1.14 mm wide; the 7F bore leaves 0.85 mm. It rests at about 54
+    # degrees between the measured segments (a free wire) and is bent by the lumen past it.
+    wire = {"preset": "workhorse", "tip": {"length": 0.003, "angle": np.radians(60)}}
+    env = suite.load("coronary", "navigate", {"random": 0, "pool_size": 1, "pool_seed": 5,
+                                              "wire": wire, "cache_dir": tmp_path})
+    env.reset()
+    assert tip_bend_deg(env.physics) < 0.5
+    for _ in range(20):  # 30 mm: through the catheter (15 mm) and the ostium into the artery
+        env.step([1.0, 0.0])
+    assert tip_bend_deg(env.physics) > 30.0
+    assert env.task.step_info()["failure"] == ""
+
+
 def test_the_coronary_scene_keeps_the_workhorse_tip_and_narrows_a_wider_one() -> None:
     scene = coronary.scene_for(None)
     workhorse = wires.preset("workhorse")

@@ -16,6 +16,7 @@ from sim4endor.models import constants as names
 from sim4endor.models import scene
 from sim4endor.models.driver import DriverConfig
 from sim4endor.models.guidewire import GuidewireConfig
+from sim4endor.physics import GuidewirePhysics
 from sim4endor.vessels import Vessel
 
 
@@ -100,10 +101,19 @@ def test_config_for_vessel_sizes_wire_to_the_deepest_target(tube: Vessel) -> Non
     scene.build_spec(tube, config)  # consistent: no error
 
 
-def test_too_wide_tip_is_refused_with_the_fix(tube: Vessel) -> None:
-    wire = GuidewireConfig(tip_length=0.006, tip_angle=math.radians(80))
-    with pytest.raises(Sim4EndoRError, match="tip_angle"):
-        scene.build_spec(tube, scene.SceneConfig(wire=wire))
+def test_a_tip_wider_than_the_inlet_starts_straightened_in_it(tube: Vessel) -> None:
+    # 6 mm at 80 degrees: far wider than the tube's bore. A real tip straightens in a
+    # catheter; the wire starts straight and its elasticity keeps the shaped rest state.
+    wide = GuidewireConfig(tip_length=0.006, tip_angle=math.radians(80))
+    physics = GuidewirePhysics.from_vessel(tube, scene.SceneConfig(wire=wide))
+    assert physics.named.model.numeric_data[names.TIP_STRAIGHT_AT_START][0] == 1.0
+    physics.place_driver(0.0, 0.0)
+    points = physics.wire_points()
+    axis = (points[-1] - points[0]) / np.linalg.norm(points[-1] - points[0])
+    off_axis = (points - points[0]) - np.outer((points - points[0]) @ axis, axis)
+    assert np.abs(off_axis).max() < 1e-9
+    fits = GuidewirePhysics.from_vessel(tube, scene.SceneConfig())
+    assert fits.named.model.numeric_data[names.TIP_STRAIGHT_AT_START][0] == 0.0
 
 
 def test_too_short_wire_is_refused_with_the_fix() -> None:

@@ -26,6 +26,9 @@ ROTATION_ACTUATOR = "driver/rotation"
 #: Custom numerics holding the driver's speed limits (m/s and rad/s).
 MAX_INSERTION_SPEED = "driver/max_insertion_speed"
 MAX_ROTATION_SPEED = "driver/max_rotation_speed"
+#: Custom numeric: 1 when the pre-bent tip starts straightened in the inlet's bore (it is
+#: wider than the bore), 0 when it starts in its shape.
+TIP_STRAIGHT_AT_START = "guidewire/tip_straight_at_start"
 
 #: Static body holding the introducer sheath's convex wall pieces.
 SHEATH_BODY = "sheath"

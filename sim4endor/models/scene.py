@@ -174,8 +174,8 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
             origin pointing along +x (used by the cantilever validation).
         config: Wire, driver and timestep; ``None`` uses the defaults.
 
-    Raises:
-        SceneError: If the pre-bent tip does not fit the lumen at the inlet.
+    A pre-bent tip wider than the inlet's lumen starts straightened
+    (:data:`~sim4endor.models.constants.TIP_STRAIGHT_AT_START`).
     """
     config = config or SceneConfig()
     wire, driver = config.wire, config.driver
@@ -185,16 +185,13 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
         spec.option.timestep = config.timestep
     if vessel is None:
         inlet, direction = np.zeros(3), np.array([1.0, 0.0, 0.0])
+        straight = False
     else:
         inlet, direction = vessel.inlet_position, vessel.inlet_direction
-        room = vessel.manifest.inlet.radius - wire.radius
-        if wire.tip_lateral_offset >= room:
-            raise SceneError(
-                f"The wire's pre-bent tip is {wire.tip_lateral_offset * 1e3:.2f} mm wide but "
-                f"{vessel.name}'s inlet leaves {room * 1e3:.2f} mm (lumen radius minus wire "
-                "radius): the wire would start inside the wall. Use a smaller "
-                "GuidewireConfig.tip_angle or tip_length."
-            )
+        # A shaped tip wider than the inlet's bore (a guide catheter's, typically) starts
+        # straightened in it, as a real wire's tip does in the catheter, and springs into its
+        # shape as it leaves (GuidewirePhysics.place_driver); one that fits starts shaped.
+        straight = wire.tip_lateral_offset >= vessel.manifest.inlet.radius - wire.radius
         _attach_vessel(spec, vessel)
     direction = direction / np.linalg.norm(direction)
     quat = insertion_frame(direction)
@@ -203,6 +200,7 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
     add_sheath(spec, start - 0.002 * direction, quat, back + 0.002 + driver.sheath_overlap, driver)
     carriage = add_driver(spec, start, quat, driver)
     add_guidewire(spec, carriage, wire)
+    spec.add_numeric(name=names.TIP_STRAIGHT_AT_START, data=[float(straight)])
     _add_wall_contact_sensor(spec, names.WALL_CONTACT_SENSOR, names.wire_body(0))
     first_tip_body = wire.num_segments - wire.tip_segments
     _add_wall_contact_sensor(spec, names.TIP_CONTACT_SENSOR, names.wire_body(first_tip_body))
