@@ -14,7 +14,7 @@ from guidewire_helpers import write_tube_vessel
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
 from sim4endor.models import scene
-from sim4endor.models.driver import DriverConfig
+from sim4endor.models.driver import DriverConfig, add_driver
 from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.vessels import Vessel
@@ -99,6 +99,22 @@ def test_config_for_vessel_sizes_wire_to_the_deepest_target(tube: Vessel) -> Non
     assert config.driver.max_insertion == pytest.approx(0.06 + 0.01)
     assert config.wire.length == pytest.approx(0.07 + config.driver.initial_protrusion + 0.003)
     scene.build_spec(tube, config)  # consistent: no error
+
+
+def test_the_carriage_mass_sits_on_the_roll_axis_wherever_the_anatomy_is() -> None:
+    # A patient's inlet lies anywhere in scanner coordinates; the roll servo must still see
+    # only the carriage's own inertia (it once saw m |pos|^2: 0.04 kg m^2 in stEVE's anatomy).
+    spec = scene.base_spec()
+    driver = DriverConfig()
+    add_driver(spec, np.array([0.3, -0.6, 0.1]),
+               scene.insertion_frame(np.array([-0.7, 0.7, -0.2])), driver)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    inertia = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, inertia)
+    roll = model.jnt_dofadr[_id(model, mujoco.mjtObj.mjOBJ_JOINT, names.ROTATION_JOINT)]
+    assert inertia[roll, roll] == pytest.approx(driver.carriage_inertia)
 
 
 def test_a_tip_wider_than_the_inlet_starts_straightened_in_it(tube: Vessel) -> None:

@@ -122,6 +122,13 @@ def add_driver(
     inertia = config.carriage_inertia
     carriage.mass = config.carriage_mass
     carriage.inertia = [inertia, inertia, inertia]
+    # The centre of mass on the roll axis, at the body's origin. Left unset, MuJoCo 3.17's
+    # compiler puts an explicit inertial frame at the body's *world* position (measured:
+    # body_ipos == pos), which hangs the carriage's mass m·|pos⊥|² off the roll axis: 0.04
+    # kg·m² in the stEVE anatomy (inlet 0.67 m from the origin), 4000x the carriage's own
+    # inertia, so the 0.01 N·m roll servo turned the wire 0.06 rad of a commanded 1.9 in 1 s.
+    carriage.ipos = [0.0, 0.0, 0.0]
+    carriage.iquat = [1.0, 0.0, 0.0, 0.0]
     carriage.explicitinertial = True
     # Small insertion overshoot below 0 is allowed so the servo never fights a joint limit.
     carriage.add_joint(
