@@ -164,6 +164,29 @@ def test_evaluate_on_another_task_prints_but_keeps_the_runs_evaluation(
     assert (run_dir / "evaluation.json").read_text() == saved
 
 
+def test_evaluate_runs_the_trees_named_not_the_runs_held_out_split(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The shipped generalist evaluates on held-out trees 1000 on; --pool-seed 1003 once gave
+    # tree 1000 ("has no target 'AM'").
+    from sim4endor.rl import runs
+
+    seen: dict[str, object] = {}
+
+    def fake_evaluate_run(run_dir: Path, **kwargs: object) -> dict[str, float]:
+        seen.update(kwargs["task_arguments"])  # type: ignore[arg-type]
+        return {"success_rate": 1.0}
+
+    monkeypatch.setattr(runs, "evaluate_run", fake_evaluate_run)
+    status, _, err = _cli(["evaluate", "generalist", "--domain", "coronary", "--task", "navigate",
+                           "--pool-seed", "1003", "--pool-size", "1", "--target", "AM",
+                           "--json", "--no-progress"], capsys)
+    assert status == 0, err
+    assert seen["pool_seed"] == 1003 and seen["eval_pool_seed"] is None
+    config = EnvConfig(domain="coronary", task="navigate", pool_seed=1003, pool_size=1)
+    assert config.task_kwargs(0, evaluation=True)["pool_seed"] == 1003
+
+
 def test_training_on_the_generalist_observation_set(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
