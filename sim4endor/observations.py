@@ -11,6 +11,12 @@ from __future__ import annotations
 #: (the generator's segments are 15-60 mm long) and about four times the shaped tip's length.
 PATH_POINTS = 8
 PATH_SPACING = 0.0025
+#: The ``manifold_distance`` entry saturates here (m), the reward's distance scale
+#: (``RewardConfig.distance_divisor_mm``). Steering needs the route ahead (``path_ahead``), not
+#: how far beyond a decimetre the target lies; the shipped ``generalist``, trained on the
+#: unsaturated distance, froze at the start of 20 of its 32 missed held-out targets, every one
+#: 104-144 mm away (docs/results/generalisation/results.md).
+DISTANCE_HORIZON = 0.1
 
 #: Observation entries every task returns: the paper's state s_t = [p_t, v_t].
 DEFAULT_OBSERVATIONS: tuple[str, ...] = ("tip_position", "tip_velocity")

@@ -10,6 +10,7 @@ import pytest
 from navigation_helpers import require_vessel
 
 from sim4endor import suite
+from sim4endor.observations import DISTANCE_HORIZON
 from sim4endor.rewards import RewardConfig
 from sim4endor.tasks import (
     InitialStateConfig,
@@ -167,6 +168,14 @@ def test_optional_observations_have_documented_shapes() -> None:
     np.testing.assert_allclose(obs["last_action"], INSERT)
     assert obs["insertion"][0] > 0
     assert obs["manifold_distance"][0] == pytest.approx(env.task.step_info()["manifold_distance"])
+
+
+def test_the_distance_entry_saturates_at_the_horizon() -> None:
+    # The vascular phantom's targets start about 104-107 mm away along the route.
+    env = suite.load("vascular_phantom", "task_a", {"observations": ("manifold_distance",)})
+    observed = env.reset().observation["manifold_distance"][0]
+    assert env.task.manifold_distance()(env.physics.tip_position()) > DISTANCE_HORIZON
+    assert observed == DISTANCE_HORIZON
 
 
 def test_pixels_show_the_lumen_and_the_wire_without_opengl() -> None:

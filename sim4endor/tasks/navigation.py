@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from sim4endor import rewards
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
-from sim4endor.observations import PATH_POINTS
+from sim4endor.observations import DISTANCE_HORIZON, PATH_POINTS
 from sim4endor.tasks import starts
 from sim4endor.tasks.anatomy import Anatomy, AnatomySource
 from sim4endor.tasks.config import NavigationConfig, TaskConfigError
@@ -430,7 +430,8 @@ class NavigationTask(base.Task):
         if name == "rotation":
             return np.array([physics.rotation_angle()], dtype=np.float64)
         if name == "manifold_distance":
-            return np.array([self.manifold_distance()(physics.tip_position())])
+            distance = self.manifold_distance()(physics.tip_position())
+            return np.array([min(distance, DISTANCE_HORIZON)])
         if name == "pixels":
             return self._fluoroscopy(physics)
         if name == "tip_force":
