@@ -187,6 +187,17 @@ def test_evaluate_runs_the_trees_named_not_the_runs_held_out_split(
     assert config.task_kwargs(0, evaluation=True)["pool_seed"] == 1003
 
 
+def test_a_tree_pool_run_evaluates_on_a_phantom_domain(
+    capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The generalist's config names a coronary tree pool; a phantom takes no pool arguments.
+    status, out, err = _cli(["evaluate", "generalist", "--domain", "simplified_phantom",
+                             "--task", "task_a", "--trials", "1", "--json", "--no-progress"],
+                            capsys)
+    assert status == 0, err
+    assert json.loads(out)["trials"] == 1
+
+
 def test_training_on_the_generalist_observation_set(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -95,7 +95,7 @@ def evaluate_run(
     """
     config = run_config(run_dir)
     seed = config.seed + EVAL_SEED_OFFSET if seed is None else seed
-    env_config = dataclasses.replace(config.env, **(task_arguments or {}))
+    env_config = dataclasses.replace(config.env, **_on_domain(config.env, task_arguments or {}))
     env = (make_env or env_factory(env_config, evaluation=True))(seed)
     try:
         agent = load_agent_for(run_dir, config, env)
@@ -120,3 +120,17 @@ def read_evaluation(run_dir: Path) -> dict[str, Any] | None:
     """Returns the saved final evaluation of ``run_dir``, or None if it has none yet."""
     path = Path(run_dir) / EVALUATION_FILE
     return json.loads(path.read_text()) if path.is_file() else None
+
+
+#: The run's anatomy settings: they name trees or a vessel of the run's own domain.
+_ANATOMY_FIELDS = ("vessel", "target", "pool_seed", "pool_size", "eval_pool_seed")
+
+
+def _on_domain(run_env: Any, task_arguments: Mapping[str, Any]) -> dict[str, Any]:
+    """``task_arguments`` for another domain than the run's without the run's anatomy settings
+    (a coronary run's tree pool means nothing to a phantom): only those given carry over."""
+    fields = dict(task_arguments)
+    if fields.get("domain", run_env.domain) != run_env.domain:
+        for name in _ANATOMY_FIELDS:
+            fields.setdefault(name, None)
+    return fields
