@@ -169,6 +169,7 @@ def test_evaluate_runs_the_trees_named_not_the_runs_held_out_split(
 ) -> None:
     # The shipped generalist evaluates on held-out trees 1000 on; --pool-seed 1003 once gave
     # tree 1000 ("has no target 'AM'").
+    from sim4endor import assets
     from sim4endor.rl import runs
 
     seen: dict[str, object] = {}
@@ -182,8 +183,8 @@ def test_evaluate_runs_the_trees_named_not_the_runs_held_out_split(
                            "--pool-seed", "1003", "--pool-size", "1", "--target", "AM",
                            "--json", "--no-progress"], capsys)
     assert status == 0, err
-    assert seen["pool_seed"] == 1003 and seen["eval_pool_seed"] is None
-    config = EnvConfig(domain="coronary", task="navigate", pool_seed=1003, pool_size=1)
+    config = runs.evaluation_env(runs.run_config(assets.run_or_policy("generalist")).env, seen)
+    assert config.pool_seed == 1003 and config.eval_pool_seed is None
     assert config.task_kwargs(0, evaluation=True)["pool_seed"] == 1003
 
 

@@ -69,10 +69,6 @@ def run(args: argparse.Namespace) -> int:
     if args.vessel is not None and args.target is None:
         return _run_vessel(args)
     other_task = arg_types.task_arguments(args)
-    if "pool_seed" in other_task:
-        # The trees named are the trees evaluated: a run evaluates its held-out split
-        # (eval_pool_seed), which would otherwise silently replace them.
-        other_task["eval_pool_seed"] = None
     if args.domain or args.task:
         other_task.update({k: v for k, v in (("domain", args.domain), ("task", args.task)) if v})
     if args.vessel is not None and not (args.domain or args.task):

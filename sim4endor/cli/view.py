@@ -121,8 +121,7 @@ class TeleopSession:
             self.step = 0
             return
         observation = state_vector(self.timestep.observation)
-        # A key command overrides the policy until S sets the speeds back to zero.
-        if self.policy is not None and not self.speed.any():
+        if self.policy is not None and self.policy_driving:
             action = np.asarray(self.policy(observation), dtype=float)
         else:
             action = self.speed.copy()
@@ -140,9 +139,15 @@ class TeleopSession:
                                          float(info["reward_failure"])))
             self.recording.episode.append(self._episode)
 
+    @property
+    def policy_driving(self) -> bool:
+        """Whether the policy acts now: a key command overrides it until S sets the speeds
+        back to zero."""
+        return self.policy is not None and not self.speed.any()
+
     def status(self) -> str:
         """Returns the status lines shown in the viewer."""
-        if self.policy is not None and not self.speed.any():
+        if self.policy_driving:
             command = "policy driving (arrow keys take over, S hands back)"
         else:
             command = f"command insert {self.speed[0]:+.2f} rotate {self.speed[1]:+.2f}"

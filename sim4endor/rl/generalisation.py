@@ -265,13 +265,11 @@ def evaluate_vessel(run_dir: Path, vessel: str | Path, config: SuiteConfig,
         ``targets``: the same metrics per target label.
     """
     from sim4endor import vessels
-    from sim4endor.rl.runs import run_config
+    from sim4endor.rl.runs import evaluation_env, run_config
 
-    train_env = run_config(run_dir).env
     loaded = vessels.load(vessel)
-    base = dataclasses.replace(train_env, domain="vessel", task="navigate",
-                               vessel=str(loaded.root), wire=config.wire, pool_seed=None,
-                               pool_size=None, eval_pool_seed=None)
+    base = evaluation_env(run_config(run_dir).env, {
+        "domain": "vessel", "task": "navigate", "vessel": str(loaded.root), "wire": config.wire})
     cases = [Case("vessel", target, dataclasses.replace(base, target=target))
              for target in sorted(loaded.targets)]
     envs = CaseEnvironments()

@@ -12,7 +12,7 @@ from torchrl.envs import EnvBase
 
 from sim4endor.rl import checkpoint
 from sim4endor.rl.algorithms import Agent, build_agent
-from sim4endor.rl.config import TrainConfig, load_config
+from sim4endor.rl.config import EnvConfig, TrainConfig, load_config
 from sim4endor.rl.envs import EnvFactory, env_factory
 from sim4endor.rl.evaluation import rollout_episodes
 from sim4endor.rl.trainer import (
@@ -95,7 +95,7 @@ def evaluate_run(
     """
     config = run_config(run_dir)
     seed = config.seed + EVAL_SEED_OFFSET if seed is None else seed
-    env_config = dataclasses.replace(config.env, **_on_domain(config.env, task_arguments or {}))
+    env_config = evaluation_env(config.env, task_arguments or {})
     env = (make_env or env_factory(env_config, evaluation=True))(seed)
     try:
         agent = load_agent_for(run_dir, config, env)
@@ -126,11 +126,19 @@ def read_evaluation(run_dir: Path) -> dict[str, Any] | None:
 _ANATOMY_FIELDS = ("vessel", "target", "pool_seed", "pool_size", "eval_pool_seed")
 
 
-def _on_domain(run_env: Any, task_arguments: Mapping[str, Any]) -> dict[str, Any]:
-    """``task_arguments`` for another domain than the run's without the run's anatomy settings
-    (a coronary run's tree pool means nothing to a phantom): only those given carry over."""
+def evaluation_env(run_env: EnvConfig, task_arguments: Mapping[str, Any]) -> EnvConfig:
+    """The environment a run is evaluated in: ``task_arguments`` (``EnvConfig`` fields) on top
+    of the run's own ``run_env``.
+
+    The run's anatomy settings carry over only where they still name something: on another
+    domain none do (a coronary run's tree pool means nothing to a phantom), and trees named
+    with ``pool_seed`` are the trees evaluated, not the run's held-out split
+    (``eval_pool_seed``), unless that is named too.
+    """
     fields = dict(task_arguments)
     if fields.get("domain", run_env.domain) != run_env.domain:
         for name in _ANATOMY_FIELDS:
             fields.setdefault(name, None)
-    return fields
+    if "pool_seed" in fields:
+        fields.setdefault("eval_pool_seed", None)
+    return dataclasses.replace(run_env, **fields)
