@@ -106,6 +106,32 @@ def test_tight_bends_of_90_degrees_and_more() -> None:
 
 
 @pytest.mark.parametrize("side", ["left", "right"])
+def test_a_tight_bend_fits_in_its_arterys_drawn_length(side: str) -> None:
+    # The mean tree (size_sd 0) with a tight bend wherever one fits: every artery keeps the
+    # table's mean length; the 10 mm left main, too short for any, stays straight, the 30 mm
+    # proximal RCA bends.
+    config = CoronaryArteriesConfig(side=side, size_sd=0.0, tight_bend_probability=1.0,
+                                    curvature_rms=0.0)
+    graph = coronary_arteries(config, 3).centerline
+    lengths = {spec.name: spec.length[0] * 1e-3 for spec in arteries(side)}
+    root = graph.branch_names[0]
+    bent = []
+    for index, name in enumerate(graph.branch_names):
+        points = graph.nodes[np.asarray(graph.branch) == index]
+        steps = np.diff(points, axis=0)
+        drawn = lengths[name] + (config.catheter_length + config.ostium_length
+                                 if name == root else 0.0)
+        # Centerline nodes every 0.5 mm: a branch's first node sits at its parent's end.
+        assert np.linalg.norm(steps, axis=1).sum() == pytest.approx(drawn, abs=1e-3), name
+        tangents = steps / np.linalg.norm(steps, axis=1, keepdims=True)
+        turn = np.degrees(np.arccos(np.clip((tangents[:-24] * tangents[24:]).sum(1), -1, 1)))
+        if turn.max() >= 90.0:
+            bent.append(name)
+    assert ("LM" not in bent) if side == "left" else (root in bent)
+    assert len(bent) >= len(graph.branch_names) - 2
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
 def test_every_tree_is_a_valid_lumen(side: str) -> None:
     for seed in range(8):
         tree = coronary_arteries(CoronaryArteriesConfig(side=side, stenoses=1), seed)

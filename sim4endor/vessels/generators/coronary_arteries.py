@@ -313,8 +313,14 @@ def _path(segment: _Drawn, config: CoronaryArteriesConfig,
     bend = float(rng.uniform(*config.tight_bend_angle_deg))
     bend_radius = float(rng.uniform(*config.tight_bend_radius)) * radius
     arc_length = math.radians(bend) * bend_radius
-    before = float(rng.uniform(0.3, 0.6)) * length
-    after = max(length - before - arc_length, 0.2 * length)
+    room = length - arc_length
+    if room < 0.2 * length:
+        # No room for the bend in the artery's drawn length (a 10 mm left main cannot hold the
+        # 9-19 mm arc of a 90-120 deg bend on 2.6-4 of its radii): no tight bend. Drawing it
+        # anyway made such a segment up to twice as long as drawn, curled behind the catheter.
+        return tortuous_path(length, radius, config, rng, base=steady)
+    before = float(rng.uniform(0.3, 0.7)) * room
+    after = room - before
     return (
         *tortuous_path(before, radius, config, rng, base=steady),
         Arc(bend, bend_radius, float(rng.uniform(0.0, 360.0))),
