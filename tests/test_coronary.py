@@ -48,14 +48,19 @@ def test_calibres_follow_the_literature_and_finets_law(config: CoronaryArteriesC
     specs = {s.name: s for s in arteries(config.side)}
     for seed in range(6):
         tree = coronary_arteries(config, seed)
+        # A branch with no room in the tree is left out (with its children): 1 of these 12.
+        present = set(tree.centerline.branch_names)
+        assert len(present) >= len(specs) - 1
         for name, spec in specs.items():
+            if name not in present:
+                continue
             radii = branch_radii(tree, name)
             mean, sd = spec.diameter
             start = 2e3 * radii[-1 if name == next(iter(specs)) else 0]
             if name != next(iter(specs)):  # the root starts in the catheter
                 assert max(mean - 2 * sd, 1.5) - 1e-6 <= start <= mean + 2 * sd + 1e-6, name
             kids = [s.name for s in specs.values() if s.parent == name]
-            if len(kids) == 2:
+            if len(kids) == 2 and present.issuperset(kids):
                 starts = [2e3 * branch_radii(tree, k)[0] for k in kids]
                 law = FINET * sum(starts)
                 # Finet's law, clamped into [largest child, own start] (graph nodes: 0.05 mm).

@@ -105,7 +105,8 @@ class CoronaryArteriesConfig:
         stenosis_severity: Range of diameter reduction of a stenosis (fraction).
         stenosis_length: Range of a stenosis' axial length (m).
         min_angle_deg: Smallest angle between a segment and its parent's end direction.
-        tight_bend_probability: Chance that a segment has one tight bend.
+        tight_bend_probability: Chance that a segment has one tight bend (drawn only where its
+            arc fits in the segment's drawn length with a fifth to spare).
         tight_bend_angle_deg: Range of a tight bend's angle.
         tight_bend_radius: Range of a tight bend's axis radius, in lumen radii (>= 2.5: the
             swept tube folds below 1 / ``max_curvature_ratio`` radii).
