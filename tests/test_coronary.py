@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -218,3 +219,31 @@ def test_the_coronary_tip_force_limit_and_termination_overrides_keep_it(tmp_path
     assert env.task.config.termination.time_limit == 30.0
     phantom = suite.load("simplified_phantom", "task_a", {"termination": {"time_limit": 30.0}})
     assert phantom.task.config.termination.max_tip_force == 1.0  # the paper's
+
+
+def test_a_tree_another_process_is_building_is_waited_for_not_built_again(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from filelock import FileLock
+
+    from sim4endor.tasks import anatomy
+    from sim4endor.vessels import build
+    from sim4endor.vessels.manifest import MANIFEST_FILE
+
+    builds: list[Path] = []
+    monkeypatch.setattr(build, "build_vessel", lambda *a, out_dir, **k: builds.append(out_dir))
+    tree, params = coronary_arteries(LEFT, 0), build.BuildParams()
+    folder = anatomy.cache_folder(tree, "left_0", tmp_path, LEFT, params)
+    returned: list[Path] = []
+    with FileLock(anatomy.lock_path(folder)):  # "another process" is building the tree
+        waiting = threading.Thread(target=lambda: returned.append(
+            anatomy.cached_build(tree, "left_0", tmp_path, LEFT, params)))
+        waiting.start()
+        waiting.join(timeout=0.5)
+        assert waiting.is_alive() and not builds  # blocked on the lock, not building
+        folder.mkdir()
+        (folder / MANIFEST_FILE).write_text("{}")  # the other process finishes
+    waiting.join(timeout=30)
+    assert returned == [folder] and not builds
+    # With no one else building, the tree is built (once).
+    other = anatomy.cached_build(coronary_arteries(LEFT, 1), "left_1", tmp_path, LEFT, params)
+    assert builds == [other]

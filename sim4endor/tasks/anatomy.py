@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Literal
 
 import mujoco
 import numpy as np
+from filelock import FileLock
 
 from sim4endor import vessels
 from sim4endor.models.scene import SceneConfig, build_model, config_for_vessel, fit_travel
@@ -156,25 +157,46 @@ class AnatomyPool(AnatomySource):
         return anatomy
 
 
-def cached_build(tree: GeneratedAnatomy, name: str, cache_dir: Path, config: object,
+def cache_folder(tree: GeneratedAnatomy, name: str, cache_dir: Path, config: object,
                  params: BuildParams) -> Path:
-    """Builds a generated tree into ``cache_dir`` once; returns its vessel folder.
+    """The vessel folder :func:`cached_build` keeps ``tree`` in.
 
-    The folder name carries a hash of the generated lumen, the generator config and the build
+    Its name carries a hash of the generated lumen, the generator config and the build
     settings, so a changed generator or package version builds a new folder instead of
     silently reusing a stale one, and processes sharing the cache never rewrite a folder
     another one is reading.
     """
-    from sim4endor.vessels.build import build_vessel, content_hash
+    from sim4endor.vessels.build import content_hash
 
     digest = content_hash(tree.lumen, config=repr(config), params=repr(params))[:12]
-    folder = cache_dir / f"{name}_{digest}"
-    if not (folder / MANIFEST_FILE).is_file():
+    return cache_dir / f"{name}_{digest}"
+
+
+def cached_build(tree: GeneratedAnatomy, name: str, cache_dir: Path, config: object,
+                 params: BuildParams) -> Path:
+    """Builds a generated tree into ``cache_dir`` once (:func:`cache_folder`); returns its
+    vessel folder. A process that finds another one building the same tree waits for it."""
+    from sim4endor.vessels.build import build_vessel
+
+    folder = cache_folder(tree, name, cache_dir, config, params)
+    if (folder / MANIFEST_FILE).is_file():
+        return folder
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    # Training workers draw from one pool: without the lock two of them built the same tree
+    # at once, each replacing the folder the other was still copying into the build cache.
+    with FileLock(lock_path(folder)):
+        if (folder / MANIFEST_FILE).is_file():  # built by another process while we waited
+            return folder
         build_vessel(tree.lumen, name=name, out_dir=folder, units="m",
                      centerline=tree.centerline, inlet=tree.inlet_position,
                      targets=tree.targets, source=tree.description, params=params,
                      progress=False)
     return folder
+
+
+def lock_path(folder: Path) -> Path:
+    """The lock file held while ``folder`` is being built (beside it)."""
+    return folder.with_name(folder.name + ".lock")
 
 
 def default_cache_dir(domain: str) -> Path:
