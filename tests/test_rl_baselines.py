@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import pytest
 from navigation_helpers import require_vessel
 
@@ -53,3 +56,30 @@ def test_best_constant_ranks_by_success_then_time() -> None:
     assert chosen == ConstantAction(1.0, 0.0)  # both succeed; the faster push wins
     assert set(tried) == {ConstantAction(0.5, 0.0), ConstantAction(1.0, 0.0)}
     assert chosen.label == "constant [1, 0]"
+
+
+def test_the_steve_anatomy_is_built_once_into_a_folder_named_after_its_inputs(
+        steve_bench_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Before, every suite run rebuilt one fixed folder, replacing it under any other suite run
+    # (a bench worker) that had it open.
+    from sim4endor import vessels
+    from sim4endor.rl.generalisation import steve_vessel
+    from sim4endor.vessels import build
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    builds: list[Path] = []
+
+    def fake_build(*args: object, out_dir: Path, **kwargs: object) -> None:
+        builds.append(out_dir)  # a small shipped vessel stands in for the stEVE build
+        shutil.copytree(vessels.resolve("simplified_phantom"), out_dir)
+
+    monkeypatch.setattr(build, "build_vessel", fake_build)
+    first = steve_vessel(steve_bench_dir)
+    assert first is not None and len(builds) == 1
+    assert first.root.parent == tmp_path / "sim4endor" / "steve"
+    assert first.root.name.startswith("steve_dualdevicenav_")  # + a hash of the inputs
+    built = {p: p.stat().st_mtime_ns for p in first.root.rglob("*")}
+    second = steve_vessel(steve_bench_dir)
+    assert second is not None and second.root == first.root and len(builds) == 1
+    assert {p: p.stat().st_mtime_ns for p in second.root.rglob("*")} == built
+    assert steve_vessel(tmp_path / "no_such_folder") is None

@@ -29,11 +29,13 @@ from tensordict.nn import TensorDictModuleBase
 from torchrl.envs import EnvBase
 from tqdm.auto import tqdm
 
+from sim4endor import vessels
 from sim4endor.rl import baselines
 from sim4endor.rl.config import EnvConfig
 from sim4endor.rl.envs import sim4endor_env
 from sim4endor.rl.evaluation import rollout_episodes
 from sim4endor.rl.metrics import Episode, summarize
+from sim4endor.vessels import Vessel
 
 _LOG = logging.getLogger(__name__)
 
@@ -124,24 +126,35 @@ def suite_cases(config: SuiteConfig, observations: str) -> list[Case]:
     return cases
 
 
-def steve_vessel(folder: Path | None) -> Any:
-    """The stEVE anatomy built into the cache (once), or None when ``folder`` lacks it."""
+def steve_vessel(folder: Path | None) -> Vessel | None:
+    """The stEVE anatomy built into the cache, or None when ``folder`` lacks it.
+
+    The cache folder is named after a hash of the inputs, so it is built once per machine
+    and never rewritten while another suite run (a bench worker) has it open.
+    """
     if folder is None or not (folder / "vessel_architecture_collision.obj").is_file():
         return None
-    from sim4endor.tasks.anatomy import default_cache_dir
-    from sim4endor.vessels.build import build_vessel
+    from sim4endor.tasks.anatomy import build_once, default_cache_dir
+    from sim4endor.vessels.build import build_vessel, content_hash
     from sim4endor.vessels.meshio import read_mesh
     from sim4endor.vessels.register import RegistrationParams
     from sim4endor.vessels.slicer import read_slicer_centerline
 
-    return build_vessel(
-        read_mesh(folder / "vessel_architecture_collision.obj"), name="steve_dualdevicenav",
-        out_dir=default_cache_dir("steve") / "steve_dualdevicenav", units="mm",
-        centerline=read_slicer_centerline([folder / "centerlines"]),
-        registration=RegistrationParams(),
-        source="stEVE_bench dualdevicenav (lkarstensen/stEVE_bench)",
-        license_text=(folder / "LICENSE").read_text(), progress=False,
-    )
+    mesh = read_mesh(folder / "vessel_architecture_collision.obj")
+    centerline = read_slicer_centerline([folder / "centerlines"])
+    registration = RegistrationParams()
+    license_text = (folder / "LICENSE").read_text()
+    digest = content_hash(mesh, centerline=centerline, registration=registration,
+                          license=license_text)[:12]
+
+    def build(out_dir: Path) -> None:
+        build_vessel(mesh, name="steve_dualdevicenav", out_dir=out_dir, units="mm",
+                     centerline=centerline, registration=registration,
+                     source="stEVE_bench dualdevicenav (lkarstensen/stEVE_bench)",
+                     license_text=license_text, progress=False)
+
+    return vessels.load(build_once(default_cache_dir("steve") / f"steve_dualdevicenav_{digest}",
+                                   build))
 
 
 class CaseEnvironments:

@@ -175,22 +175,33 @@ def cache_folder(tree: GeneratedAnatomy, name: str, cache_dir: Path, config: obj
 def cached_build(tree: GeneratedAnatomy, name: str, cache_dir: Path, config: object,
                  params: BuildParams) -> Path:
     """Builds a generated tree into ``cache_dir`` once (:func:`cache_folder`); returns its
-    vessel folder. A process that finds another one building the same tree waits for it."""
+    vessel folder."""
     from sim4endor.vessels.build import build_vessel
 
-    folder = cache_folder(tree, name, cache_dir, config, params)
-    if (folder / MANIFEST_FILE).is_file():
-        return folder
-    cache_dir.mkdir(parents=True, exist_ok=True)
-    # Training workers draw from one pool: without the lock two of them built the same tree
-    # at once, each replacing the folder the other was still copying into the build cache.
-    with FileLock(lock_path(folder)):
-        if (folder / MANIFEST_FILE).is_file():  # built by another process while we waited
-            return folder
-        build_vessel(tree.lumen, name=name, out_dir=folder, units="m",
+    def build(out_dir: Path) -> None:
+        build_vessel(tree.lumen, name=name, out_dir=out_dir, units="m",
                      centerline=tree.centerline, inlet=tree.inlet_position,
                      targets=tree.targets, source=tree.description, params=params,
                      progress=False)
+
+    return build_once(cache_folder(tree, name, cache_dir, config, params), build)
+
+
+def build_once(folder: Path, build: Callable[[Path], object]) -> Path:
+    """Runs ``build(folder)`` unless ``folder`` already holds a finished vessel; returns it.
+
+    ``folder`` must be named after everything its build depends on (a content hash), so it
+    is never rewritten once built. A process that finds another one building the same folder
+    waits for it and uses its result: training workers draw from one pool, and without the
+    lock two of them built the same tree at once, each replacing the folder the other was
+    still copying into the build cache.
+    """
+    if (folder / MANIFEST_FILE).is_file():
+        return folder
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    with FileLock(lock_path(folder)):
+        if not (folder / MANIFEST_FILE).is_file():  # else built by another process meanwhile
+            build(folder)
     return folder
 
 
