@@ -44,9 +44,12 @@ class _Indices:
     wire_bodies: NDArray[np.int64]
     tip_site: int
     geom_class: NDArray[np.int8]  # 1: wire segment, 2: vessel wall, 0: anything else
-    wall_sensor: int  # sensordata address of the whole wire's wall contact sensor
+    wall_sensors: tuple[int, ...]  # sensordata addresses of each chain's wall contact sensor
     tip_sensor: int  # sensordata address of the tip section's wall contact sensor
-    first_tip_body: int  # body id of the first segment of the pre-bent tip
+    tip_start: int  # index in wire_bodies of the first segment of the pre-bent tip
+    # Per chain after the first: the body its free root copies, the root's qpos and dof
+    # addresses (see GuidewireConfig.chain_bodies).
+    chain_roots: tuple[tuple[int, int, int], ...]
     actuators: tuple[int, int]  # insertion, rotation
     joint_qpos: tuple[int, int]  # qpos addresses of the insertion and rotation joints
 
@@ -95,23 +98,35 @@ class GuidewirePhysics(dm_mujoco.Physics):
         cached = getattr(self, "_index_cache", None)
         if cached is not None and cached.model is model:
             return cached
-        first = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.wire_body(0))
-        count = 0
-        while mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.wire_body(count)) >= 0:
-            count += 1
-        bodies = np.arange(first, first + count)
-        sheath = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, names.SHEATH_BODY)
+        body = mujoco.mjtObj.mjOBJ_BODY
+        ids: list[int] = []
+        while (found := mujoco.mj_name2id(model, body, names.wire_body(len(ids)))) >= 0:
+            ids.append(found)
+        bodies = np.array(ids)  # not consecutive ids once the wire is split into chains
+        starts, roots = [0], []
+        for index in range(1, len(ids)):
+            root = mujoco.mj_name2id(model, body, names.wire_chain_root(index))
+            if root >= 0:
+                joint = int(model.body_jntadr[root])
+                starts.append(index)
+                roots.append((ids[index - 1], int(model.jnt_qposadr[joint]),
+                              int(model.jnt_dofadr[joint])))
+        sheath = mujoco.mj_name2id(model, body, names.SHEATH_BODY)
         sensor = mujoco.mjtObj.mjOBJ_SENSOR
-        wall_sensor = mujoco.mj_name2id(model, sensor, names.WALL_CONTACT_SENSOR)
         tip_sensor = mujoco.mj_name2id(model, sensor, names.TIP_CONTACT_SENSOR)
         indices = _Indices(
             model=model,
             wire_bodies=bodies,
             tip_site=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE),
             geom_class=_geom_classes(model, bodies, sheath),
-            wall_sensor=int(model.sensor_adr[wall_sensor]),
+            wall_sensors=tuple(
+                int(model.sensor_adr[mujoco.mj_name2id(model, sensor,
+                                                       names.wall_contact_sensor(first))])
+                for first in starts
+            ),
             tip_sensor=int(model.sensor_adr[tip_sensor]),
-            first_tip_body=int(model.sensor_objid[tip_sensor]),
+            tip_start=int(np.flatnonzero(bodies == model.sensor_objid[tip_sensor])[0]),
+            chain_roots=tuple(roots),
             actuators=(
                 mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, names.INSERTION_ACTUATOR),
                 mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, names.ROTATION_ACTUATOR),
@@ -152,8 +167,7 @@ class GuidewirePhysics(dm_mujoco.Physics):
 
     def tip_start_index(self) -> int:
         """Index in :meth:`wire_points` of the vertex where the pre-bent tip starts."""
-        indices = self._indices()
-        return indices.first_tip_body - int(indices.wire_bodies[0])
+        return self._indices().tip_start
 
     def insertion_depth(self) -> float:
         """Carriage insertion (m) from its start; the tip has advanced about as much."""
@@ -207,8 +221,7 @@ class GuidewirePhysics(dm_mujoco.Physics):
 
     def wall_contact_force(self) -> float:
         """Total normal force of all wire–vessel-wall contacts (N)."""
-        indices = self._indices()
-        return self._contact_sensor_total(indices.wall_sensor, int(indices.wire_bodies[0]))
+        return self._contact_sensor_total(self._indices().wall_sensors, 0)
 
     def tip_contact_force(self) -> float:
         """Normal force of the pre-bent tip's segments on the vessel wall (N).
@@ -218,20 +231,26 @@ class GuidewirePhysics(dm_mujoco.Physics):
         phantom: over 2.5 N in total on the shaft for about 0.4 N on the tip).
         """
         indices = self._indices()
-        return self._contact_sensor_total(indices.tip_sensor, indices.first_tip_body)
+        return self._contact_sensor_total((indices.tip_sensor,), indices.tip_start)
 
-    def _contact_sensor_total(self, address: int, first_body: int) -> float:
-        """Sums a wall contact sensor: the wall force on the wire from ``first_body`` on."""
+    def _contact_sensor_total(self, addresses: tuple[int, ...], first_index: int) -> float:
+        """Sums wall contact sensors: the wall force on the wire from its body
+        ``first_index`` (0: proximal) on."""
         if not self.legacy_step:
             # Filled by mj_step for the same contacts and forces that _wall_contacts() reads:
             # slots of [count, normal, tangent, tangent].
-            slots = self.data.ptr.sensordata[address : address + 4 * names.CONTACT_SENSOR_SLOTS]
-            found = int(slots[0])
-            if found <= names.CONTACT_SENSOR_SLOTS:
-                return float(slots[1 : 4 * found : 4].sum())
+            total = 0.0
+            for address in addresses:
+                slots = self.data.ptr.sensordata[address : address + 4 * names.CONTACT_SENSOR_SLOTS]
+                found = int(slots[0])
+                if found > names.CONTACT_SENSOR_SLOTS:
+                    break
+                total += float(slots[1 : 4 * found : 4].sum())
+            else:
+                return total
         # Legacy stepping (the sensor describes the previous state) or more contacts than slots.
         forces, bodies = self._wall_contacts()
-        return float(forces[bodies >= first_body].sum())
+        return float(forces[np.isin(bodies, self._indices().wire_bodies[first_index:])].sum())
 
     # -------------------------------------------------------------------------- driving
     def driver_targets(self) -> tuple[float, float]:
@@ -271,7 +290,15 @@ class GuidewirePhysics(dm_mujoco.Physics):
             self._straighten_wire()
         # Body and site positions follow at once, so the tip can be read inside dm_control's
         # reset_context (whose forward pass only runs when the block exits).
-        mujoco.mj_kinematics(self.model.ptr, self.data.ptr)
+        model, data = self.model.ptr, self.data.ptr
+        mujoco.mj_kinematics(model, data)
+        # Each later chain's free root onto the segment it copies, chain after chain: a root's
+        # pose follows from the chains before it.
+        for copied, qpos, dof in self._indices().chain_roots:
+            data.qpos[qpos:qpos + 3] = data.xpos[copied]
+            data.qpos[qpos + 3:qpos + 7] = data.xquat[copied]
+            data.qvel[dof:dof + 6] = 0.0
+            mujoco.mj_kinematics(model, data)
 
     def _straighten_wire(self) -> None:
         """Turns every wire joint against its body's rest turn: the wire, pre-bent tip

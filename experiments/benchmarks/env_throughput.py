@@ -40,6 +40,8 @@ from sim4endor.envs.gym import NavigationEnv
 #: A step of the bare-physics replay: the compiled model of the anatomy an episode starts in
 #: (None within an episode) and the driver targets (insertion m, rotation rad).
 Command = tuple[mujoco.MjModel | None, tuple[float, float]]
+#: A wire setting as suite.load takes it: a preset name, a mapping of fields, or None (the default).
+Wire = str | dict[str, Any] | None
 #: Resets before the timed loops: a pool of 8 trees drawn 40 times misses one with
 #: probability 8 x (7/8)^40 = 0.4 %.
 _WARM_RESETS = 40
@@ -79,9 +81,13 @@ class EnvRun:
     mean_contacts: float
 
 
-def env_loop(domain: str, task: str, actions: np.ndarray) -> EnvRun:
+def _kwargs(wire: Wire) -> dict[str, Any]:
+    return {"random": 0} if wire is None else {"random": 0, "wire": wire}
+
+
+def env_loop(domain: str, task: str, actions: np.ndarray, wire: Wire) -> EnvRun:
     """Runs the dm_control env on ``actions``."""
-    env = suite.load(domain, task, {"random": 0})
+    env = suite.load(domain, task, _kwargs(wire))
     # A pool domain builds each tree the first time an episode draws it (about 0.7 s for a
     # cached coronary tree, printed as first_load_s); draw them before timing, so the loop
     # measures stepping and resets as a long training run sees them.
@@ -118,10 +124,10 @@ def env_loop(domain: str, task: str, actions: np.ndarray) -> EnvRun:
 
 
 def physics_loop(
-    domain: str, task: str, commands: list[Command], n_sub_steps: int
+    domain: str, task: str, commands: list[Command], n_sub_steps: int, wire: Wire
 ) -> float:
     """Returns the CPU seconds to replay the same resets and driver targets on the bare physics."""
-    env = suite.load(domain, task, {"random": 0})
+    env = suite.load(domain, task, _kwargs(wire))
     env.reset()
     physics = env.physics
     loaded = None
@@ -141,9 +147,9 @@ def physics_loop(
     return time.thread_time() - start
 
 
-def gym_loop(domain: str, task: str, actions: np.ndarray) -> float:
+def gym_loop(domain: str, task: str, actions: np.ndarray, wire: Wire) -> float:
     """Returns the seconds of the same actions through the gymnasium adapter."""
-    env = NavigationEnv(domain, task, {"random": 0})
+    env = NavigationEnv(domain, task, _kwargs(wire))
     env.reset(seed=0)
     for _ in range(_WARM_RESETS):
         env.reset()
@@ -155,9 +161,9 @@ def gym_loop(domain: str, task: str, actions: np.ndarray) -> float:
     return time.perf_counter() - start
 
 
-def reset_cost(domain: str, task: str, count: int) -> float:
+def reset_cost(domain: str, task: str, count: int, wire: Wire) -> float:
     """Returns the median seconds of a reset after a few steps."""
-    env = suite.load(domain, task, {"random": 0})
+    env = suite.load(domain, task, _kwargs(wire))
     times = []
     for _ in range(count):
         env.reset()
@@ -169,28 +175,31 @@ def reset_cost(domain: str, task: str, count: int) -> float:
     return statistics.median(times)
 
 
-def measure(domain: str, task: str, steps: int, repeats: int) -> dict[str, Any]:
-    """Times one task (env, bare physics, gymnasium, reset) and returns its figures."""
+def measure(domain: str, task: str, steps: int, repeats: int, wire: Wire = None
+            ) -> dict[str, Any]:
+    """Times one task (env, bare physics, gymnasium, reset) and returns its figures;
+    ``wire`` replaces the task's wire (a preset name or a mapping, as ``suite.load`` takes)."""
     actions = _random_actions(steps, seed=0)
     t_load = time.perf_counter()
-    suite.load(domain, task)
+    suite.load(domain, task, _kwargs(wire))
     load_s = time.perf_counter() - t_load
     # Alternating the loops and keeping the fastest run of each cancels most of the noise
     # of a shared machine.
     runs: list[EnvRun] = []
     physics_runs, gym_runs, overheads = [], [], []
     for _ in range(repeats):
-        run = env_loop(domain, task, actions)
+        run = env_loop(domain, task, actions, wire)
         runs.append(run)
         overheads.append(100.0 * (run.cpu_s - run.physics_cpu_s) / run.physics_cpu_s)
-        physics_runs.append(physics_loop(domain, task, run.commands, run.n_sub_steps))
-        gym_runs.append(gym_loop(domain, task, actions))
+        physics_runs.append(physics_loop(domain, task, run.commands, run.n_sub_steps, wire))
+        gym_runs.append(gym_loop(domain, task, actions, wire))
     env_s = min(run.wall_s for run in runs)
     physics_s, gym_s = min(physics_runs), min(gym_runs)
     run = runs[0]
     return {
         "domain": domain,
         "task": task,
+        "wire": wire,
         "env_steps": steps,
         "physics_steps_per_env_step": run.n_sub_steps,
         "timestep_ms": 1e3 * run.timestep,
@@ -203,7 +212,7 @@ def measure(domain: str, task: str, steps: int, repeats: int) -> dict[str, Any]:
         "env_vs_replay_percent": 100.0 * (min(r.cpu_s for r in runs) - physics_s) / physics_s,
         "realtime_factor": steps * run.n_sub_steps * run.timestep / env_s,
         "mean_contacts": run.mean_contacts,
-        "reset_ms": 1e3 * reset_cost(domain, task, 20),
+        "reset_ms": 1e3 * reset_cost(domain, task, 20, wire),
         "first_load_s": load_s,
         "load_average_1min": os.getloadavg()[0],
     }
@@ -221,6 +230,10 @@ _TABLE = (
 )
 
 
+def _wire(text: str) -> Wire:
+    return json.loads(text) if text.lstrip().startswith("{") else text
+
+
 def main() -> None:
     """Runs the benchmark and prints the figures."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -233,11 +246,15 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3,
                         help="alternate the loops this often and keep each one's fastest run")
     parser.add_argument("--json", action="store_true", help="print one JSON line per task")
+    parser.add_argument(
+        "--wire", type=_wire, default=None,
+        help="the wire of every task instead of its default: a preset name, or a JSON "
+             'mapping such as \'{"preset": "paper", "chain_bodies": 6}\'')
     args = parser.parse_args()
     if args.cpu is not None:
         os.sched_setaffinity(0, {args.cpu})
     if not args.all:
-        result = measure(args.domain, args.task, args.steps, args.repeats)
+        result = measure(args.domain, args.task, args.steps, args.repeats, args.wire)
         if args.json:
             print(json.dumps(result))
             return
@@ -248,7 +265,7 @@ def main() -> None:
         print("| " + " | ".join(heading for heading, _, _ in _TABLE) + " |")
         print("|" + "---|" * len(_TABLE))
     for domain, task in suite.ALL_TASKS:
-        result = measure(domain, task, args.steps, args.repeats)
+        result = measure(domain, task, args.steps, args.repeats, args.wire)
         if args.json:
             print(json.dumps(result), flush=True)
         else:

@@ -121,8 +121,10 @@ def tapered_cantilever_errors(length: float = 0.03) -> dict[str, dict[str, float
         if wire.core_profile is None:
             continue
         real = validation.tapered_cantilever(dataclasses.replace(wire, mass_scale=1.0))
+        # Damped 8x (not 80x as before): a catalogue wire is split into chains, whose welds
+        # go unstable under joint damping of a second or more; both settle within 60 s.
         scaled = validation.tapered_cantilever(
-            dataclasses.replace(wire, damping_time=2.0), settle_time=60.0
+            dataclasses.replace(wire, damping_time=0.2), settle_time=60.0
         )
         out[name] = {"real_mass": real.relative_error, "mass_scaled": scaled.relative_error,
                      "predicted_mm": real.predicted * 1e3, "real_mm": real.deflection * 1e3,

@@ -37,7 +37,8 @@ SHEATH_CLASS = "sheath"
 #: Prefix given to every element of the attached vessel MJCF.
 VESSEL_PREFIX = "vessel/"
 
-#: Contact sensor reporting the whole wire's contacts with the vessel wall (count and forces).
+#: Contact sensor reporting the wall contacts (count and forces) of the wire's first chain, the
+#: whole wire when it is one chain (:func:`wall_contact_sensor` names the others).
 WALL_CONTACT_SENSOR = "wall_contact"
 #: Contact sensor reporting the contacts of the pre-bent tip's segments with the vessel wall.
 TIP_CONTACT_SENSOR = "tip_contact"
@@ -53,6 +54,19 @@ def wire_body(index: int) -> str:
 def wire_joint(index: int) -> str:
     """Returns the name of the ball joint at the proximal end of wire body ``index`` (>= 1)."""
     return f"{WIRE_PREFIX}joint_{index:03d}"
+
+
+def wire_chain_root(index: int) -> str:
+    """Returns the name of the free body that starts the wire chain whose first segment is
+    body ``index`` (a non-colliding copy of body ``index - 1``, welded to it), and of its
+    free joint and weld."""
+    return f"{WIRE_PREFIX}chain_root_{index:03d}"
+
+
+def wall_contact_sensor(first_body: int) -> str:
+    """Returns the name of the wall contact sensor of the wire chain starting at body
+    ``first_body`` (:data:`WALL_CONTACT_SENSOR` for the first chain)."""
+    return WALL_CONTACT_SENSOR if first_body == 0 else f"{WALL_CONTACT_SENSOR}_{first_body:03d}"
 
 
 def wire_geom(index: int) -> str:

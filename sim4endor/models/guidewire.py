@@ -26,6 +26,13 @@ How the rod is built (and why):
   The second geom is the contact capsule with the wire's outer radius.
 * The first body is welded to the parent (the driver's clamp); ``flat="false"`` makes the
   built (pre-bent) shape the rest shape.
+* Optionally (``chain_bodies``, set by the catalogue's wires) the wire is several chains
+  instead of one. A serial chain's mass matrix is dense, and the Newton solver's cost grows
+  with the square of its degrees of freedom, most of a step on the complex anatomies. Each
+  chain after the first starts at a free body that copies the previous chain's last segment
+  and is welded to it (as stiff as MuJoCo allows), and has its own plugin instance; the
+  joint after the copy is the rod's joint there, so no joint is lost and the chains are the
+  same rod. ``GuidewirePhysics.place_driver`` moves the roots with the clamp.
 * Quasi-static mass scaling: the wire's inertia is negligible next to its elastic and contact
   forces, and MuJoCo's soft contacts work in acceleration space, so a real 0.1 g wire tunnels
   through the wall at usable time steps. ``mass_scale`` multiplies the density (and gravity
@@ -38,6 +45,7 @@ How the rod is built (and why):
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -86,6 +94,13 @@ class GuidewireConfig:
             ``armature_time²``. The plugin's spring is explicit, so the time step must stay
             well below ``armature_time``. Measured at dt 5 ms: 7.5 ms blew up in 6 of 48
             insertion episodes in the vascular phantom, 15 ms in none (nor in 48 more).
+        chain_bodies: Longest run of wire bodies in one kinematic chain, or ``None`` for one
+            chain from the clamp to the tip. A serial chain's mass matrix is dense, so
+            MuJoCo's cost per step grows with the square of its degrees of freedom; split
+            into chains, the wire costs about linearly in its segments (see
+            :func:`add_guidewire`). Counted from the tip, so the pre-bent tip lies in one
+            chain; at least ``tip_segments``. The welds between chains go unstable under
+            joint damping of a second or more (``damping_time`` ≥ 1 s; 0.2 s is fine).
         core_profile: Optional tapered core: ``((s, d), ...)`` pairs of distance from the
             distal tip ``s`` (m, strictly increasing, starting at 0) and core diameter ``d``
             (m), linear in between and constant beyond the last pair. ``None`` (default)
@@ -112,6 +127,7 @@ class GuidewireConfig:
     segment_growth: float = 1.5
     damping_time: float = 0.025
     armature_time: float = 0.015
+    chain_bodies: int | None = None
     core_profile: tuple[tuple[float, float], ...] | None = None
 
     def __post_init__(self) -> None:
@@ -143,6 +159,11 @@ class GuidewireConfig:
             raise GuidewireConfigError(
                 "GuidewireConfig.tip_segments must be >= 1 and segment_growth >= 1, got "
                 f"{self.tip_segments} and {self.segment_growth}."
+            )
+        if self.chain_bodies is not None and self.chain_bodies < self.tip_segments:
+            raise GuidewireConfigError(
+                "GuidewireConfig.chain_bodies must be >= tip_segments (the tip stays in one "
+                f"chain), got {self.chain_bodies} with {self.tip_segments} tip segments."
             )
         if self.friction < 0 or self.damping_time < 0 or self.armature_time < 0:
             raise GuidewireConfigError(
@@ -354,51 +375,174 @@ def add_guidewire(
     joint_stiffness[1:] = config.bending_stiffness * factors[1:] / lengths[:-1]
 
     spec.activate_plugin(_CABLE_PLUGIN)
-    plugin = spec.add_plugin(name=names.WIRE_PLUGIN, plugin_name=_CABLE_PLUGIN, active=True)
-    plugin.config = {
-        "bend": repr(config.youngs_modulus),
-        "twist": repr(config.shear_modulus),
-        "flat": "false",
-    }
-    core_default = spec.find_default(names.WIRE_CORE_CLASS)
-    wire_default = spec.find_default(names.WIRE_CLASS)
-    body = parent
-    previous_heading, previous_length = 0.0, 0.0
-    for index, (length, heading) in enumerate(zip(lengths, headings, strict=True)):
-        turn = heading - previous_heading
-        body = body.add_body(
-            name=names.wire_body(index),
-            pos=[previous_length, 0.0, 0.0],
-            quat=[math.cos(turn / 2), 0.0, 0.0, math.sin(turn / 2)],
-        )
-        if index > 0:
-            body.add_joint(
-                name=names.wire_joint(index),
-                type=mujoco.mjtJoint.mjJNT_BALL,
-                damping=config.damping_time * joint_stiffness[index],
-                armature=joint_stiffness[index] * config.armature_time**2,
-            )
-        body.add_geom(
-            core_default,
-            type=mujoco.mjtGeom.mjGEOM_CAPSULE,
-            fromto=[0.0, 0.0, 0.0, length, 0.0, 0.0],
-            size=[core_radius * factors[index] ** 0.25, 0.0, 0.0],
-        )
-        body.add_geom(
-            wire_default,
-            name=names.wire_geom(index),
-            type=mujoco.mjtGeom.mjGEOM_CAPSULE,
-            fromto=[0.0, 0.0, 0.0, length, 0.0, 0.0],
-            size=[config.radius, 0.0, 0.0],
-            density=config.density * config.mass_scale,
-            friction=[config.friction, 0.005, 0.0001],
-        )
-        body.plugin.plugin_name = _CABLE_PLUGIN
-        body.plugin.name = names.WIRE_PLUGIN
-        body.plugin.active = True
-        previous_heading, previous_length = heading, length
+    segments = _Segments(config, lengths, headings, factors, core_radius, joint_stiffness)
+    first_bodies = chain_starts(config, len(lengths))
+    bounds = [*first_bodies, len(lengths)]
+    clamp_pos, clamp_quat = _world_pose(parent)
+    _add_plugin_instance(spec, config, names.WIRE_PLUGIN)
+    body = segments.add_chain(spec, parent, range(bounds[0], bounds[1]), names.WIRE_PLUGIN)
+    for first, end in itertools.pairwise(bounds[1:]):
+        # The chain's root is a free body that copies segment first-1, welded to it.
+        vertex = np.sum(lengths[: first - 1, None] * np.stack(
+            [np.cos(headings[: first - 1]), np.sin(headings[: first - 1]),
+             np.zeros(first - 1)], 1), axis=0)
+        pos, quat = np.zeros(3), np.zeros(4)
+        mujoco.mju_rotVecQuat(pos, vertex, clamp_quat)
+        mujoco.mju_mulQuat(quat, clamp_quat, _turn(headings[first - 1]))
+        root = spec.worldbody.add_body(name=names.wire_chain_root(first), pos=pos + clamp_pos,
+                                       quat=quat)
+        root.add_freejoint(name=names.wire_chain_root(first))
+        plugin = f"{names.WIRE_PLUGIN}_{first:03d}"
+        _add_plugin_instance(spec, config, plugin)
+        segments.add_root_copy(spec, root, first - 1, plugin)
+        body = segments.add_chain(spec, root, range(first, end), plugin)
+        weld = spec.add_equality(name=names.wire_chain_root(first))
+        weld.type = mujoco.mjtEq.mjEQ_WELD
+        weld.objtype = mujoco.mjtObj.mjOBJ_BODY
+        weld.name1, weld.name2 = names.wire_body(first - 1), root.name
+        # Relative pose = the one at qpos0 (identity: the copy coincides), torque scale 1.
+        weld.data = np.array([0.0] * 10 + [1.0] + [0.0] * (len(weld.data) - 11))
+        # As stiff as MuJoCo allows (its time constant is clamped to 2 dt) and nearly hard:
+        # measured, the joint turns less than 1 degree in a vascular-phantom episode.
+        weld.solref = [1e-6, 1.0]
+        weld.solimp = [0.99999, 0.99999, 0.001, 0.5, 2.0]
+    previous_length = float(lengths[-1])
     # Hidden (site group 3) and wire-sized: the default 5 mm site would hide the tip.
     body.add_site(
         name=names.WIRE_TIP_SITE, pos=[previous_length, 0.0, 0.0], size=[config.radius, 0, 0],
         group=3,
     )
+
+
+def chain_starts(config: GuidewireConfig, count: int) -> list[int]:
+    """Index of the first body of each kinematic chain of a ``count``-body wire (0 first).
+
+    Chains are counted from the tip, ``config.chain_bodies`` bodies each, so the tip lies in
+    the last one; the first chain, clamped to the driver, takes what is left.
+    """
+    size = config.chain_bodies
+    if size is None or size >= count:
+        return [0]
+    return [0, *range(count - size * ((count - 1) // size), count, size)]
+
+
+def _turn(angle: float) -> NDArray[np.float64]:
+    """Quaternion of a turn by ``angle`` about +z (the plane of the pre-bent tip)."""
+    return np.array([math.cos(angle / 2), 0.0, 0.0, math.sin(angle / 2)])
+
+
+def _world_pose(body: mujoco.MjsBody) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """World position and orientation of a spec body at qpos0, from its ancestors' poses."""
+    pos, quat = np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
+    while body.name != "world":
+        if body.frame is not None or body.alt.type != mujoco.mjtOrientation.mjORIENTATION_QUAT:
+            raise GuidewireConfigError(
+                f"add_guidewire cannot place a split wire under body {body.name!r}, which is "
+                "attached to a frame or oriented other than by a quaternion; use "
+                "chain_bodies=None there."
+            )
+        local = np.array(body.quat, dtype=np.float64)
+        local /= np.linalg.norm(local)
+        moved, turned = np.zeros(3), np.zeros(4)
+        mujoco.mju_rotVecQuat(moved, pos, local)
+        mujoco.mju_mulQuat(turned, local, quat)
+        pos, quat = moved + np.array(body.pos), turned
+        body = body.parent
+    return pos, quat
+
+
+@dataclass(frozen=True)
+class _Segments:
+    """The wire's bodies as add_guidewire lays them out, one chain at a time."""
+
+    config: GuidewireConfig
+    lengths: NDArray[np.float64]
+    headings: NDArray[np.float64]
+    factors: NDArray[np.float64]
+    core_radius: float
+    joint_stiffness: NDArray[np.float64]
+
+    def add_root_copy(self, spec: mujoco.MjSpec, root: mujoco.MjsBody, index: int,
+                      plugin: str) -> None:
+        """Gives a chain's root the core of segment ``index``, which it copies, and its mass.
+
+        Its rotational inertia is the armature of the joint behind the copy (isotropic), as
+        the other bodies see through their joints; a soft weld yields in inverse proportion
+        to the inertia it holds. Armature on the free joint would also add that much to its
+        translation, a thousand times a real segment's mass, and slowed the real-mass
+        cantilever's settling threefold. The copy carries no contacts (segment ``index``
+        does) and adds one segment's (scaled) mass per chain, which the quasi-static wire
+        ignores.
+        """
+        config, length = self.config, float(self.lengths[index])
+        self._core(spec, root, index)
+        root.explicitinertial = True
+        root.mass = config.density * config.mass_scale * math.pi * config.radius**2 * (
+            length + 4.0 * config.radius / 3.0)
+        root.ipos = [0.5 * length, 0.0, 0.0]  # MuJoCo 3.17 puts an unset one at the world pos
+        root.iquat = [1.0, 0.0, 0.0, 0.0]
+        armature = float(self.joint_stiffness[max(index, 1)]) * config.armature_time**2
+        root.inertia = [armature] * 3
+        _join_plugin(root, plugin)
+
+    def add_chain(self, spec: mujoco.MjSpec, parent: mujoco.MjsBody, indices: range,
+                  plugin: str) -> mujoco.MjsBody:
+        """Adds bodies ``indices`` as a serial chain under ``parent``; returns the last.
+
+        ``parent`` is the clamp for the first chain, or the root that copies body
+        ``indices[0] - 1`` for the others, so each body's pose follows from the previous one.
+        """
+        config, body = self.config, parent
+        wire_default = spec.find_default(names.WIRE_CLASS)
+        for index in indices:
+            previous = index - 1
+            turn = self.headings[index] - (self.headings[previous] if index else 0.0)
+            body = body.add_body(
+                name=names.wire_body(index),
+                pos=[self.lengths[previous] if index else 0.0, 0.0, 0.0],
+                quat=_turn(turn),
+            )
+            if index > 0:
+                body.add_joint(
+                    name=names.wire_joint(index),
+                    type=mujoco.mjtJoint.mjJNT_BALL,
+                    damping=config.damping_time * self.joint_stiffness[index],
+                    armature=self.joint_stiffness[index] * config.armature_time**2,
+                )
+            self._core(spec, body, index)
+            body.add_geom(
+                wire_default,
+                name=names.wire_geom(index),
+                type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                fromto=[0.0, 0.0, 0.0, self.lengths[index], 0.0, 0.0],
+                size=[config.radius, 0.0, 0.0],
+                density=config.density * config.mass_scale,
+                friction=[config.friction, 0.005, 0.0001],
+            )
+            _join_plugin(body, plugin)
+        return body
+
+    def _core(self, spec: mujoco.MjSpec, body: mujoco.MjsBody, index: int) -> None:
+        # The plugin reads a joint's stiffness from the first geom of the joint's body.
+        body.add_geom(
+            spec.find_default(names.WIRE_CORE_CLASS),
+            type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+            fromto=[0.0, 0.0, 0.0, self.lengths[index], 0.0, 0.0],
+            size=[self.core_radius * self.factors[index] ** 0.25, 0.0, 0.0],
+        )
+
+
+def _add_plugin_instance(spec: mujoco.MjSpec, config: GuidewireConfig, name: str) -> None:
+    plugin = spec.add_plugin(name=name, plugin_name=_CABLE_PLUGIN, active=True)
+    plugin.config = {
+        "bend": repr(config.youngs_modulus),
+        "twist": repr(config.shear_modulus),
+        "flat": "false",
+    }
+
+
+def _join_plugin(body: mujoco.MjsBody, name: str) -> None:
+    """Puts ``body`` in the cable plugin instance ``name`` (one per chain)."""
+    body.plugin.plugin_name = _CABLE_PLUGIN
+    body.plugin.name = name
+    body.plugin.active = True

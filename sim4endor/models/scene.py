@@ -26,7 +26,7 @@ from sim4endor import assets
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
 from sim4endor.models.driver import DriverConfig, add_driver, add_sheath
-from sim4endor.models.guidewire import GuidewireConfig, add_guidewire
+from sim4endor.models.guidewire import GuidewireConfig, add_guidewire, chain_starts
 from sim4endor.vessels import CENTERLINE_FILE, Vessel
 from sim4endor.vessels.manifest import MANIFEST_FILE
 
@@ -201,7 +201,9 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
     carriage = add_driver(spec, start, quat, driver)
     add_guidewire(spec, carriage, wire)
     spec.add_numeric(name=names.TIP_STRAIGHT_AT_START, data=[float(straight)])
-    _add_wall_contact_sensor(spec, names.WALL_CONTACT_SENSOR, names.wire_body(0))
+    for first in chain_starts(wire, wire.num_segments):
+        root = names.wire_body(0) if first == 0 else names.wire_chain_root(first)
+        _add_wall_contact_sensor(spec, names.wall_contact_sensor(first), root)
     first_tip_body = wire.num_segments - wire.tip_segments
     _add_wall_contact_sensor(spec, names.TIP_CONTACT_SENSOR, names.wire_body(first_tip_body))
     spec.stat.center = list(inlet + 0.5 * driver.max_insertion * direction)
