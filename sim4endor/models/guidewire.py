@@ -275,7 +275,13 @@ def segment_lengths(config: GuidewireConfig) -> NDArray[np.float64]:
 def wire_vertices(config: GuidewireConfig) -> NDArray[np.float64]:
     """Returns the (N+1, 3) rest-shape vertices in the mount frame (wire along +x, tip to +y)."""
     lengths = segment_lengths(config)
-    headings = _segment_headings(config, len(lengths))
+    return _rest_vertices(lengths, _segment_headings(config, len(lengths)))
+
+
+def _rest_vertices(
+    lengths: NDArray[np.float64], headings: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The (N+1, 3) vertices of segments of ``lengths`` and in-plane ``headings`` (rad)."""
     steps = lengths[:, None] * np.stack([np.cos(headings), np.sin(headings), 0 * headings], 1)
     return np.vstack([np.zeros(3), np.cumsum(steps, axis=0)])
 
@@ -381,13 +387,11 @@ def add_guidewire(
     clamp_pos, clamp_quat = _world_pose(parent)
     _add_plugin_instance(spec, config, names.WIRE_PLUGIN)
     body = segments.add_chain(spec, parent, range(bounds[0], bounds[1]), names.WIRE_PLUGIN)
+    vertices = _rest_vertices(lengths, headings)
     for first, end in itertools.pairwise(bounds[1:]):
         # The chain's root is a free body that copies segment first-1, welded to it.
-        vertex = np.sum(lengths[: first - 1, None] * np.stack(
-            [np.cos(headings[: first - 1]), np.sin(headings[: first - 1]),
-             np.zeros(first - 1)], 1), axis=0)
         pos, quat = np.zeros(3), np.zeros(4)
-        mujoco.mju_rotVecQuat(pos, vertex, clamp_quat)
+        mujoco.mju_rotVecQuat(pos, vertices[first - 1], clamp_quat)
         mujoco.mju_mulQuat(quat, clamp_quat, _turn(headings[first - 1]))
         root = spec.worldbody.add_body(name=names.wire_chain_root(first), pos=pos + clamp_pos,
                                        quat=quat)
@@ -403,7 +407,8 @@ def add_guidewire(
         # Relative pose = the one at qpos0 (identity: the copy coincides), torque scale 1.
         weld.data = np.array([0.0] * 10 + [1.0] + [0.0] * (len(weld.data) - 11))
         # As stiff as MuJoCo allows (its time constant is clamped to 2 dt) and nearly hard:
-        # measured, the joint turns less than 1 degree in a vascular-phantom episode.
+        # measured over 400 random env steps, the welds yield at most 0.19° and 0.016 mm
+        # (vascular phantom with a split paper wire; coronary tree 1017, workhorse).
         weld.solref = [1e-6, 1.0]
         weld.solimp = [0.99999, 0.99999, 0.001, 0.5, 2.0]
     previous_length = float(lengths[-1])
@@ -481,6 +486,7 @@ class _Segments:
             length + 4.0 * config.radius / 3.0)
         root.ipos = [0.5 * length, 0.0, 0.0]  # MuJoCo 3.17 puts an unset one at the world pos
         root.iquat = [1.0, 0.0, 0.0, 0.0]
+        # Body 0 is clamped and has no joint: a copy of it takes the armature of joint 1.
         armature = float(self.joint_stiffness[max(index, 1)]) * config.armature_time**2
         root.inertia = [armature] * 3
         _join_plugin(root, plugin)

@@ -43,7 +43,7 @@ J_ANGLE = math.radians(150.0)
 _MM = 1e-3
 #: Bodies per kinematic chain of the catalogue's wires (GuidewireConfig.chain_bodies): a
 #: numerical setting, not a property of the wire. It makes the complex anatomies about 1.7x
-#: faster with the tip within 0.05 mm of the one-chain wire's (docs/performance.md); the
+#: faster and keeps every validation target (docs/performance.md, docs/guidewire.md); the
 #: paper preset keeps one chain, bit for bit the published model.
 CHAIN_BODIES = 6
 
