@@ -13,7 +13,14 @@ import numpy as np
 import pytest
 
 from sim4endor import suite
-from sim4endor.tasks.expert import CenterlineExpert, ExpertConfig, run_expert
+from sim4endor.tasks.expert import (
+    CenterlineExpert,
+    ExpertConfig,
+    ProbeConfig,
+    ProbingExpert,
+    lookahead,
+    run_expert,
+)
 
 PHANTOM_TASKS = [(domain, task) for domain in ("simplified_phantom", "vascular_phantom")
                  for task in ("task_a", "task_b")]
@@ -90,3 +97,67 @@ def test_a_blocked_carriage_makes_the_expert_pull_back() -> None:
     expert.reset()
     assert expert(env.physics, env.task)[0] < 0.0
 
+
+def test_a_lookahead_on_copies_leaves_the_episode_alone_and_replays_exactly() -> None:
+    """ProbingExpert's plans rest on this: the copy's rollout does not touch the real
+    physics or task, and the real episode, given the copy's actions, ends where the copy did
+    (bit for bit: MuJoCo is deterministic and the copy carries the solver's warm start)."""
+    env = suite.load("vascular_phantom", "task_b", {"random": 3})
+    env.reset()
+    for _ in range(20):
+        env.step(np.array([0.8, 0.3]))
+    before = env.physics.data.qpos.copy(), env.physics.driver_targets()
+    substeps = round(env.task.config.action.control_timestep / env.physics.timestep())
+    reached, closest, actions = lookahead(env.physics, env.task, CenterlineExpert(), substeps,
+                                           steps=30)
+    np.testing.assert_array_equal(env.physics.data.qpos, before[0])
+    assert env.physics.driver_targets() == before[1]
+    assert actions and not reached
+    for action in actions:
+        env.step(action)
+    assert env.task.step_info()["manifold_distance"] == closest
+
+
+def test_a_stuck_probing_expert_follows_the_best_aim_of_its_probe() -> None:
+    env = suite.load("vascular_phantom", "task_b", {"random": 3})
+    env.reset()
+    # stall=0: stuck from the first step, so the first call probes.
+    expert = ProbingExpert(probe=ProbeConfig(roll_offsets_deg=(0.0, 90.0), horizon=25, stall=0,
+                                             max_probes=1))
+    first = expert(env.physics, env.task)
+    assert expert._probes == 1
+    substeps = round(env.task.config.action.control_timestep / env.physics.timestep())
+    plans = [lookahead(env.physics, env.task,
+                        CenterlineExpert(ExpertConfig(roll_offset_deg=offset)), substeps, 25)
+             for offset in (0.0, 90.0)]
+    best = min(plans, key=lambda plan: (not plan[0], plan[1]))
+    np.testing.assert_array_equal(first, best[2][0])
+    env.step(first)
+    for expected in best[2][1:]:
+        np.testing.assert_array_equal(expert(env.physics, env.task), expected)
+        env.step(expected)
+    # Once its one probe is spent it steers as the plain expert does.
+    expert._plan.clear()
+    plain = CenterlineExpert()
+    plain._best, plain._backing_off = expert._best, expert._backing_off
+    np.testing.assert_array_equal(expert(env.physics, env.task), plain(env.physics, env.task))
+
+
+def test_an_aim_offset_rolls_the_tip_away_from_the_path_turn() -> None:
+    """ExpertConfig.roll_offset_deg: 0 (the default) leaves the plain expert's actions bit
+    for bit; aimed 180 degrees off, the expert holds the insertion where the plain one,
+    aligned, pushes, and rolls the other way."""
+    env = suite.load("vascular_phantom", "task_b", {"random": 0})
+    env.reset()
+    plain, zero = CenterlineExpert(), CenterlineExpert(ExpertConfig(roll_offset_deg=0.0))
+    flipped = CenterlineExpert(ExpertConfig(roll_offset_deg=180.0))
+    compared = 0
+    for _ in range(30):
+        action = plain(env.physics, env.task)
+        np.testing.assert_array_equal(action, zero(env.physics, env.task))
+        other = flipped(env.physics, env.task)
+        if action[0] > 0.0 and action[1] != 0.0:  # aligned with the turn and rolling
+            assert other[0] == 0.0 and np.sign(other[1]) == -np.sign(action[1])
+            compared += 1
+        env.step(action)
+    assert compared >= 3

@@ -11,9 +11,16 @@ generated trees (seeds ``--first-seed`` on, alternately left and right; the defa
 used by no test or tuning) once each with the ``--wire`` preset (default ``workhorse``), and
 prints each (tree, target) and the overall success rate.
 
+``--expert probing`` runs :class:`~sim4endor.tasks.expert.ProbingExpert` instead: where the
+plain expert is stuck it simulates several aims on a copy of the simulation and follows the
+best. It is the stronger reachability check (can the wire get there at all); the plain expert
+is the reactive reference that the policies' tables quote. ``--tip LENGTH_MM ANGLE_DEG``
+shapes the wire's tip as a cardiologist would before wiring (default: the preset's shape).
+
 Usage:
     python experiments/benchmarks/expert_reachability.py [--episodes 8] [--json]
     python experiments/benchmarks/expert_reachability.py --domain coronary --trees 20
+    python experiments/benchmarks/expert_reachability.py --domain coronary --expert probing
 """
 
 from __future__ import annotations
@@ -21,17 +28,21 @@ from __future__ import annotations
 import argparse
 import collections
 import json
+import math
 
 from sim4endor import suite
-from sim4endor.tasks.expert import CenterlineExpert, run_expert
+from sim4endor.tasks.expert import CenterlineExpert, ProbingExpert, run_expert
 
 TASKS = (("simplified_phantom", "task_a"), ("simplified_phantom", "task_b"),
          ("vascular_phantom", "task_a"), ("vascular_phantom", "task_b"))
 
 
-def reachability(domain: str, task: str, episodes: int) -> dict[str, object]:
+EXPERTS = {"centerline": CenterlineExpert, "probing": ProbingExpert}
+
+
+def reachability(domain: str, task: str, episodes: int,
+                 expert: CenterlineExpert) -> dict[str, object]:
     """Runs ``episodes`` seeded expert episodes (seeds 0..episodes-1) and counts outcomes."""
-    expert = CenterlineExpert()
     outcomes: collections.Counter[str] = collections.Counter()
     times = []
     for seed in range(episodes):
@@ -50,9 +61,9 @@ def reachability(domain: str, task: str, episodes: int) -> dict[str, object]:
     }
 
 
-def coronary_reachability(first_seed: int, trees: int, wire: str, as_json: bool) -> None:
-    """Runs the expert once on every distal target of ``trees`` coronary trees."""
-    expert = CenterlineExpert()
+def coronary_reachability(first_seed: int, trees: int, wire: str | dict[str, object],
+                          expert: CenterlineExpert, as_json: bool) -> None:
+    """Runs ``expert`` once on every distal target of ``trees`` coronary trees."""
     outcomes: collections.Counter[str] = collections.Counter()
     for seed in range(first_seed, first_seed + trees):
         tree = {"pool_seed": seed, "pool_size": 1, "wire": wire}
@@ -70,11 +81,13 @@ def coronary_reachability(first_seed: int, trees: int, wire: str, as_json: bool)
                   f"D {row['distance_mm']} mm", flush=True)
             env.close()
     total = sum(outcomes.values())
-    summary = {"domain": "coronary", "wire": wire, "trees": trees, "first_seed": first_seed,
-               "episodes": total, "successes": outcomes["success"],
+    summary = {"domain": "coronary", "wire": wire, "expert": type(expert).__name__,
+               "trees": trees, "first_seed": first_seed, "episodes": total,
+               "successes": outcomes["success"],
                "success_rate": outcomes["success"] / total, "outcomes": dict(outcomes)}
     print(json.dumps(summary) if as_json else
-          f"coronary ({wire} wire, {trees} trees from seed {first_seed}): "
+          f"coronary ({wire} wire, {type(expert).__name__}, {trees} trees from seed "
+          f"{first_seed}): "
           f"{outcomes['success']}/{total} reached ({outcomes['success'] / total:.0%}); "
           f"outcomes {dict(outcomes)}", flush=True)
 
@@ -87,12 +100,21 @@ def main() -> None:
     parser.add_argument("--trees", type=int, default=20, help="coronary trees")
     parser.add_argument("--first-seed", type=int, default=1000, help="first coronary tree seed")
     parser.add_argument("--wire", default="workhorse", help="wire preset (coronary)")
+    parser.add_argument("--tip", type=float, nargs=2, metavar=("LENGTH_MM", "ANGLE_DEG"),
+                        help="shape the wire's tip (coronary; default: the preset's)")
+    parser.add_argument("--expert", choices=tuple(EXPERTS), default="centerline")
     args = parser.parse_args()
+    expert = EXPERTS[args.expert]()
     if args.domain == "coronary":
-        coronary_reachability(args.first_seed, args.trees, args.wire, args.json)
+        wire: str | dict[str, object] = args.wire
+        if args.tip:
+            length_mm, angle_deg = args.tip
+            wire = {"preset": args.wire, "tip": {"length": length_mm * 1e-3,
+                                                 "angle": math.radians(angle_deg)}}
+        coronary_reachability(args.first_seed, args.trees, wire, expert, args.json)
         return
     for domain, task in TASKS:
-        row = reachability(domain, task, args.episodes)
+        row = reachability(domain, task, args.episodes, expert)
         if args.json:
             print(json.dumps(row), flush=True)
             continue

@@ -10,6 +10,9 @@ graph), so it is not an RL baseline on the paper's observation; it is
   phantoms);
 - a source of demonstrations and a sanity reference for learnt policies.
 
+:class:`ProbingExpert` adds lookahead for the reachability check: where the expert is stuck it
+simulates several aims on a copy of the simulation and follows the one that gets furthest.
+
 Example:
     >>> from sim4endor import suite
     >>> from sim4endor.tasks.expert import CenterlineExpert, run_expert
@@ -20,6 +23,8 @@ Example:
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -66,6 +71,8 @@ class ExpertConfig:
             proximal of it. ``None`` (default): the tip of the wire in the physics, whatever
             its preset (a 2 mm workhorse tip measured as a 5 mm one mixes the tip's bend into
             the body axis).
+        roll_offset_deg: Aim the tip's bend this far (about the body axis) from the path's
+            turn; 0 aims at the turn. :class:`ProbingExpert` tries several.
     """
 
     lookahead: float = 0.006
@@ -80,6 +87,7 @@ class ExpertConfig:
     back_off_steps: int = 8
     stall: float = 0.002
     tip_length: float | None = None
+    roll_offset_deg: float = 0.0
 
 
 class CenterlineExpert:
@@ -137,6 +145,8 @@ class CenterlineExpert:
         if np.linalg.norm(turn) >= cfg.straight and np.linalg.norm(bend) > 1e-9:
             # Roll angle from the tip's bend to the path's turn, about the body axis.
             phi = math.atan2(float(body @ np.cross(bend, turn)), float(bend @ turn))
+            if cfg.roll_offset_deg:
+                phi = _wrap(phi - math.radians(cfg.roll_offset_deg))
             rotate = float(np.clip(phi / max_rotation_step, -1.0, 1.0))
             aligned = abs(math.degrees(phi)) < cfg.tolerance_deg
         stalled = physics.driver_targets()[0] - physics.insertion_depth() > cfg.stall
@@ -185,6 +195,124 @@ class CenterlineExpert:
         return graph.nodes[node] - proj.point
 
 
+@dataclass(frozen=True)
+class ProbeConfig:
+    """When and how far :class:`ProbingExpert` looks ahead.
+
+    Attributes:
+        roll_offsets_deg: The aims tried at each probe (``ExpertConfig.roll_offset_deg``); 0
+            is the plain expert's.
+        horizon: Control steps each aim is simulated ahead.
+        stall: Control steps without a new closest approach to the target that count as
+            stuck (besides the end of a back-off from a wrong branch).
+        max_probes: Probes per episode. Each costs ``len(roll_offsets_deg) * horizon``
+            simulated control steps.
+        min_gain: A plan is followed only if it brings the tip this much (m) closer to the
+            target than the episode's closest approach so far, or reaches it.
+    """
+
+    roll_offsets_deg: tuple[float, ...] = (0.0, 30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 180.0)
+    horizon: int = 40
+    stall: int = 60
+    max_probes: int = 12
+    min_gain: float = 0.001
+
+
+class ProbingExpert(CenterlineExpert):
+    """:class:`CenterlineExpert` with lookahead, for reachability checks.
+
+    Entering a side branch depends on where the tip's bend points at the moment it meets the
+    ostium, and the tip's roll lags and whips behind the carriage's, so the plain expert can
+    meet the same ostium the same wrong way on every retry (docs/tasks/coronary.md). When it
+    is stuck (it has just backed off from a wrong branch, or ``probe.stall`` steps brought
+    the tip no closer), this expert simulates each aim of ``probe.roll_offsets_deg`` for
+    ``probe.horizon`` steps on a copy of the physics and the task, and then replays the
+    actions of the aim that got closest, up to its closest approach. MuJoCo is deterministic,
+    so the episode reaches the state the copy reached.
+
+    It is a planner with a perfect model of the simulation: it answers whether the wire can
+    reach a target at all (the reachability check of an anatomy), not how a robot without
+    that model would get there.
+    """
+
+    def __init__(self, config: ExpertConfig | None = None,
+                 probe: ProbeConfig | None = None) -> None:
+        self.probe = probe or ProbeConfig()
+        super().__init__(config)
+
+    def reset(self) -> None:
+        """Forgets the episode, its plan and its probes."""
+        super().reset()
+        self._plan: list[FloatArray] = []
+        self._closest = math.inf
+        self._since = 0
+        self._probes = 0
+
+    def __call__(self, physics: GuidewirePhysics, task: NavigationTask) -> FloatArray:
+        """Returns the next action: the plan's while one is being followed."""
+        distance = task.manifold_distance()
+        d = distance.at(distance.project(physics.tip_position()))
+        if d < self._closest - self.probe.min_gain:
+            self._closest, self._since = d, 0
+        else:
+            self._since += 1
+        if not self._plan:
+            stuck = self._backing_off == 1 or self._since >= self.probe.stall
+            if stuck and self._probes < self.probe.max_probes:
+                self._plan = self._probe_aims(physics, task)
+                if self._plan:
+                    # Start afresh after the plan, as after a back-off: its closest approach
+                    # is no wrong branch.
+                    self._backing_off, self._best = 0, math.inf
+        if self._plan:
+            return self._plan.pop(0)
+        return super().__call__(physics, task)
+
+    def _probe_aims(self, physics: GuidewirePhysics, task: NavigationTask) -> list[FloatArray]:
+        """The actions of the aim that gets closest, or [] if none gets closer than before."""
+        self._probes += 1
+        self._since = 0
+        substeps = max(1, round(task.config.action.control_timestep / physics.timestep()))
+        best: tuple[bool, float, list[FloatArray]] = (False, math.inf, [])
+        for offset in self.probe.roll_offsets_deg:
+            aim = CenterlineExpert(dataclasses.replace(self.config, roll_offset_deg=offset))
+            aim._neighbours = self._neighbours  # the anatomy's graph, read only
+            reached, closest, actions = lookahead(physics, task, aim, substeps,
+                                                   self.probe.horizon)
+            if (reached, -closest) > (best[0], -best[1]):
+                best = (reached, closest, actions)
+        reached, closest, actions = best
+        return actions if reached or closest < self._closest - self.probe.min_gain else []
+
+
+def lookahead(physics: GuidewirePhysics, task: NavigationTask, expert: CenterlineExpert,
+               substeps: int, steps: int) -> tuple[bool, float, list[FloatArray]]:
+    """Runs ``expert`` for up to ``steps`` control steps on copies of ``physics`` and
+    ``task``; returns (target reached, closest distance, actions up to the closest)."""
+    sim = physics.copy(share_model=True)
+    sim_task = copy.copy(task)  # its state is a few scalars, replaced (not mutated) by a step
+    actions: list[FloatArray] = []
+    closest, until = math.inf, 0
+    for _ in range(steps):
+        action = expert(sim, sim_task)
+        sim_task.before_step(action, sim)
+        try:
+            sim.step(substeps)
+        except control.PhysicsError:
+            break
+        sim_task.after_step(sim)
+        info = sim_task.step_info()
+        if info["failure"]:
+            break
+        actions.append(action)
+        d = float(info["manifold_distance"])
+        if d < closest:
+            closest, until = d, len(actions)
+        if info["is_success"]:
+            return True, closest, actions
+    return False, closest, actions[:until]
+
+
 def run_expert(env: control.Environment, expert: CenterlineExpert | None = None,
                max_steps: int | None = None) -> dict[str, float | bool | str]:
     """Runs one episode of ``expert`` on a suite environment; returns the last step's info."""
@@ -196,6 +324,11 @@ def run_expert(env: control.Environment, expert: CenterlineExpert | None = None,
         timestep = env.step(expert(env.physics, env.task))
         steps += 1
     return env.task.step_info()
+
+
+def _wrap(angle: float) -> float:
+    """``angle`` (rad) in [-pi, pi)."""
+    return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
 def _unit(v: FloatArray) -> FloatArray:
