@@ -51,8 +51,23 @@ def test_builtin_and_missing_policies() -> None:
     assert a.shape == (2,) and np.all(np.abs(a) <= 1)
     with pytest.raises(render.PolicyLoadError, match="neither"):
         render.load_policy("no_such_policy.pt", 0)
-    with pytest.raises(render.PolicyLoadError, match="expert needs the environment"):
-        render.load_policy("expert", 0)
+    for expert in ("expert", "probing-expert"):
+        with pytest.raises(render.PolicyLoadError, match="expert needs the environment"):
+            render.load_policy(expert, 0)
+
+
+def test_the_probing_expert_is_a_built_in_policy() -> None:
+    from sim4endor import suite
+    from sim4endor.tasks.expert import ProbingExpert
+
+    env = suite.load("simplified_phantom", "task_a", {"random": 0})
+    env.reset()
+    policy = render.load_policy("probing-expert", 0, env)
+    reference = ProbingExpert()
+    for _ in range(5):
+        action = policy(np.zeros(6))
+        np.testing.assert_array_equal(action, reference(env.physics, env.task))
+        env.step(action)
 
 
 def test_a_training_run_folder_is_a_policy(tmp_path: Path) -> None:

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from sim4endor.suite import NavigationEnvironment
 
 Policy = Callable[[np.ndarray], np.ndarray]
-BUILTIN_POLICIES = ("insert", "random", "expert")
+BUILTIN_POLICIES = ("insert", "random", "expert", "probing-expert")
 TARGET_RGBA = np.array([0.1, 0.9, 0.2, 0.8], dtype=np.float32)
 #: The wire overlay of videos and figures: 0.5 mm radius, 3 px across at 640 px per phantom.
 WIRE_RADIUS = 0.5e-3
@@ -53,19 +53,22 @@ def load_policy(spec: str, seed: int, env: NavigationEnvironment | None = None) 
     Args:
         spec: ``"insert"`` (push straight in), ``"random"`` (uniform actions), ``"expert"``
             (:class:`sim4endor.tasks.expert.CenterlineExpert`, which reads ``env``'s wire and
-            centerline rather than the observation), a training run folder (its latest
+            centerline rather than the observation), ``"probing-expert"``
+            (:class:`sim4endor.tasks.expert.ProbingExpert`: the same with lookahead on a copy
+            of the simulation where it is stuck, the reachability check), a training run
+            folder (its latest
             deterministic policy, as ``sim4endor evaluate`` runs it) or the path of a
             TorchScript policy exported by ``sim4endor.rl.export`` (observation (6,) float32
             -> action (2,) in [-1, 1]).
         seed: Seed of the random policy.
-        env: The environment the policy acts in (needed by ``"expert"``).
+        env: The environment the policy acts in (needed by the experts).
     """
-    if spec == "expert":
+    if spec in ("expert", "probing-expert"):
         if env is None:
-            raise PolicyLoadError("--policy expert needs the environment it acts in.")
-        from sim4endor.tasks.expert import CenterlineExpert
+            raise PolicyLoadError(f"--policy {spec} needs the environment it acts in.")
+        from sim4endor.tasks.expert import CenterlineExpert, ProbingExpert
 
-        expert = CenterlineExpert()  # a fresh one per episode: nothing to reset
+        expert = ProbingExpert() if spec == "probing-expert" else CenterlineExpert()
         return lambda _obs: expert(env.physics, env.task)
     if spec == "insert":
         return lambda _obs: np.array([1.0, 0.0])
@@ -291,7 +294,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("task", nargs="?", help="suite task, e.g. task_a")
     parser.add_argument("--policy", default="insert",
                         help="'insert' (the default), 'random', 'expert' (scripted, reads the "
-                             "wire and centerline), a shipped pretrained policy's name (e.g. "
+                             "wire and centerline), 'probing-expert' (the same with lookahead "
+                             "where it is stuck), a shipped pretrained policy's name (e.g. "
                              "generalist), a training run folder (its latest policy) or "
                              "an exported TorchScript policy (.pt: a program, load only trusted "
                              "files; a run folder loads weights only)")

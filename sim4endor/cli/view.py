@@ -212,7 +212,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="progress distance (default: manifold)")
     arg_types.add_task_arguments(parser)
     parser.add_argument("--policy", default=None,
-                        help="a policy that drives while no key command is set: 'expert', a "
+                        help="a policy that drives while no key command is set: 'expert', "
+                             "'probing-expert', a "
                              "shipped policy's name (e.g. generalist), a run folder or an "
                              "exported .pt (as render --policy)")
     parser.add_argument("--record", type=Path, default=None,
