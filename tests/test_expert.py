@@ -107,7 +107,7 @@ def test_a_lookahead_on_copies_leaves_the_episode_alone_and_replays_exactly() ->
     for _ in range(20):
         env.step(np.array([0.8, 0.3]))
     before = env.physics.data.qpos.copy(), env.physics.driver_targets()
-    substeps = round(env.task.config.action.control_timestep / env.physics.timestep())
+    substeps = env.task.config.action.physics_steps(env.physics.timestep())
     reached, closest, actions = lookahead(env.physics, env.task, CenterlineExpert(), substeps,
                                            steps=30)
     np.testing.assert_array_equal(env.physics.data.qpos, before[0])
@@ -121,12 +121,13 @@ def test_a_lookahead_on_copies_leaves_the_episode_alone_and_replays_exactly() ->
 def test_a_stuck_probing_expert_follows_the_best_aim_of_its_probe() -> None:
     env = suite.load("vascular_phantom", "task_b", {"random": 3})
     env.reset()
-    # stall=0: stuck from the first step, so the first call probes.
-    expert = ProbingExpert(probe=ProbeConfig(roll_offsets_deg=(0.0, 90.0), horizon=25, stall=0,
+    # stall_steps=0: stuck from the first step, so the first call probes.
+    expert = ProbingExpert(probe=ProbeConfig(roll_offsets_deg=(0.0, 90.0), horizon=25,
+                                             stall_steps=0,
                                              max_probes=1))
     first = expert(env.physics, env.task)
     assert expert._probes == 1
-    substeps = round(env.task.config.action.control_timestep / env.physics.timestep())
+    substeps = env.task.config.action.physics_steps(env.physics.timestep())
     plans = [lookahead(env.physics, env.task,
                         CenterlineExpert(ExpertConfig(roll_offset_deg=offset)), substeps, 25)
              for offset in (0.0, 90.0)]

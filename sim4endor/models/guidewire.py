@@ -411,11 +411,11 @@ def add_guidewire(
         # (vascular phantom with a split paper wire; coronary tree 1017, workhorse).
         weld.solref = [1e-6, 1.0]
         weld.solimp = [0.99999, 0.99999, 0.001, 0.5, 2.0]
-    previous_length = float(lengths[-1])
-    # Hidden (site group 3) and wire-sized: the default 5 mm site would hide the tip.
+    # At the far end of the last segment. Hidden (site group 3) and wire-sized: the default
+    # 5 mm site would hide the tip.
     body.add_site(
-        name=names.WIRE_TIP_SITE, pos=[previous_length, 0.0, 0.0], size=[config.radius, 0, 0],
-        group=3,
+        name=names.WIRE_TIP_SITE, pos=[float(lengths[-1]), 0.0, 0.0],
+        size=[config.radius, 0, 0], group=3,
     )
 
 

@@ -45,6 +45,10 @@ class ActionConfig:
         require(self, "ActionConfig", TaskConfigError,
                 positive=("control_timestep", "max_insertion_step", "max_rotation_step"))
 
+    def physics_steps(self, timestep: float) -> int:
+        """Physics steps of ``timestep`` (s) in one control step (at least one)."""
+        return max(1, round(self.control_timestep / timestep))
+
 
 @dataclass(frozen=True)
 class TerminationConfig:

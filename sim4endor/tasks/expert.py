@@ -203,8 +203,8 @@ class ProbeConfig:
         roll_offsets_deg: The aims tried at each probe (``ExpertConfig.roll_offset_deg``); 0
             is the plain expert's.
         horizon: Control steps each aim is simulated ahead.
-        stall: Control steps without a new closest approach to the target that count as
-            stuck (besides the end of a back-off from a wrong branch).
+        stall_steps: Control steps without a new closest approach to the target that count
+            as stuck (besides the end of a back-off from a wrong branch).
         max_probes: Probes per episode. Each costs ``len(roll_offsets_deg) * horizon``
             simulated control steps.
         min_gain: A plan is followed only if it brings the tip this much (m) closer to the
@@ -213,7 +213,7 @@ class ProbeConfig:
 
     roll_offsets_deg: tuple[float, ...] = (0.0, 30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 180.0)
     horizon: int = 40
-    stall: int = 60
+    stall_steps: int = 60
     max_probes: int = 12
     min_gain: float = 0.001
 
@@ -224,8 +224,8 @@ class ProbingExpert(CenterlineExpert):
     Entering a side branch depends on where the tip's bend points at the moment it meets the
     ostium, and the tip's roll lags and whips behind the carriage's, so the plain expert can
     meet the same ostium the same wrong way on every retry (docs/tasks/coronary.md). When it
-    is stuck (it has just backed off from a wrong branch, or ``probe.stall`` steps brought
-    the tip no closer), this expert simulates each aim of ``probe.roll_offsets_deg`` for
+    is stuck (it has just backed off from a wrong branch, or ``probe.stall_steps`` steps
+    brought the tip no closer), this expert simulates each aim of ``probe.roll_offsets_deg`` for
     ``probe.horizon`` steps on a copy of the physics and the task, and then replays the
     actions of the aim that got closest, up to its closest approach. MuJoCo is deterministic,
     so the episode reaches the state the copy reached.
@@ -257,7 +257,7 @@ class ProbingExpert(CenterlineExpert):
         else:
             self._since += 1
         if not self._plan:
-            stuck = self._backing_off == 1 or self._since >= self.probe.stall
+            stuck = self._backing_off == 1 or self._since >= self.probe.stall_steps
             if stuck and self._probes < self.probe.max_probes:
                 self._plan = self._probe_aims(physics, task)
                 if self._plan:
@@ -272,7 +272,7 @@ class ProbingExpert(CenterlineExpert):
         """The actions of the aim that gets closest, or [] if none gets closer than before."""
         self._probes += 1
         self._since = 0
-        substeps = max(1, round(task.config.action.control_timestep / physics.timestep()))
+        substeps = task.config.action.physics_steps(physics.timestep())
         best: tuple[bool, float, list[FloatArray]] = (False, math.inf, [])
         for offset in self.probe.roll_offsets_deg:
             aim = CenterlineExpert(dataclasses.replace(self.config, roll_offset_deg=offset))

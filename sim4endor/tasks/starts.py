@@ -90,4 +90,4 @@ def step(physics: GuidewirePhysics, insertion: float, rotation: float, action: A
          ) -> None:
     """Sets the driver's targets and advances one control step."""
     physics.set_driver_targets(insertion, rotation)
-    physics.step(max(1, round(action.control_timestep / physics.timestep())))
+    physics.step(action.physics_steps(physics.timestep()))
