@@ -56,7 +56,7 @@ def test_builtin_and_missing_policies() -> None:
             render.load_policy(expert, 0)
 
 
-def test_the_probing_expert_is_a_built_in_policy() -> None:
+def test_the_probing_expert_is_a_built_in_policy_that_starts_each_episode_afresh() -> None:
     from sim4endor import suite
     from sim4endor.tasks.expert import ProbingExpert
 
@@ -64,6 +64,13 @@ def test_the_probing_expert_is_a_built_in_policy() -> None:
     env.reset()
     policy = render.load_policy("probing-expert", 0, env)
     reference = ProbingExpert()
+    for _ in range(40):  # far enough that the next episode's start reads as a wrong branch
+        action = policy(np.zeros(6))
+        np.testing.assert_array_equal(action, reference(env.physics, env.task))
+        env.step(action)
+    # A new episode (as `view` starts one on R): the policy's expert starts afresh.
+    env.reset()
+    reference.reset()
     for _ in range(5):
         action = policy(np.zeros(6))
         np.testing.assert_array_equal(action, reference(env.physics, env.task))
