@@ -115,7 +115,8 @@ ENTRIES: tuple[TaskEntry, ...] = (
         tags=frozenset({TAG_RANDOMISED}),
         vessel=None,
         target=None,
-        description="A seeded random coronary tree and terminal target per episode.",
+        description="A seeded random coronary tree and terminal target per episode "
+                    "(workhorse wire, tip shaped 3 mm at 75°).",
     ),
     TaskEntry(
         domain="coronary",

@@ -42,9 +42,11 @@ tip-frame entries that do not change when the anatomy moves
 (:mod:`sim4endor.tasks.tip_frame`; docs/tasks/index.md).
 
 **Wire**: ``task_kwargs={"wire": "workhorse"}`` picks a catalogue preset
-(:mod:`sim4endor.models.wires`: ``paper`` (default), ``workhorse``, ``intermediate``,
-``stiff``); a :class:`~sim4endor.models.guidewire.GuidewireConfig` or a mapping
-(``{"preset": "workhorse", "tip": "J"}``) also works.
+(:mod:`sim4endor.models.wires`: ``paper``, ``workhorse``, ``intermediate``, ``stiff``); a
+:class:`~sim4endor.models.guidewire.GuidewireConfig` or a mapping
+(``{"preset": "workhorse", "tip": "J"}``) also works. Defaults: ``paper`` on the phantoms and
+``vessel`` folders, ``workhorse`` on ``coronary`` and ``workhorse`` with its tip shaped 3 mm at
+75° on ``random_coronary``.
 
 **Action**: shape (2,), bounded [-1, 1]: ``[Δd / max_insertion_step, Δθ / max_rotation_step]``
 per control step; defaults 1.5 mm and 9° at 20 Hz (``control_timestep`` 0.05 s), i.e. at most
@@ -265,7 +267,8 @@ def _environment_kwargs(given: Mapping[str, Any]) -> dict[str, Any]:
     return dict(given)
 
 
-def _scene(kwargs: Mapping[str, Any], default_wire: str | None = None) -> SceneConfig:
+def _scene(kwargs: Mapping[str, Any],
+           default_wire: str | Mapping[str, Any] | None = None) -> SceneConfig:
     """The scene of task_kwargs ``wire``: a preset name, a GuidewireConfig or a mapping."""
     try:
         return SceneConfig(wire=wires.resolve(kwargs.get("wire", default_wire)))
@@ -291,15 +294,15 @@ def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> Ana
             target=None if kwargs.get("target") is None else str(kwargs["target"]),
             same_wire=same_wire,
         )
-    scene = _scene(kwargs)
     if entry.domain == "random_coronary":
         return random_coronary.pool(
             size=_integer(kwargs, "pool_size", random_coronary.DEFAULT_POOL_SIZE, minimum=1),
             seed=_integer(kwargs, "pool_seed", 0, minimum=0),
             cache_dir=_cache_dir(kwargs),
-            scene=scene,
+            scene=_scene(kwargs, random_coronary.DEFAULT_WIRE),
             same_wire=same_wire,
         )
+    scene = _scene(kwargs)
     if entry.vessel is not None and entry.target is not None:
         return FixedAnatomy(compile_anatomy(entry.vessel, scene), entry.target)
     missing = [k for k in ("vessel", "target") if k not in kwargs]
@@ -324,7 +327,8 @@ def load(
         task_name: A task of that domain, e.g. ``"task_a"``.
         task_kwargs: ``wire`` (a preset of :func:`sim4endor.models.wires.names`, e.g.
             ``"workhorse"``, a :class:`~sim4endor.models.guidewire.GuidewireConfig` or a
-            mapping of its fields with optional ``preset`` and ``tip``; default ``"paper"``),
+            mapping of its fields with optional ``preset`` and ``tip``; default: the domain's,
+            above),
             ``random`` (seed), ``reward`` (``"manifold"``/``"euclidean"`` or a
             :class:`~sim4endor.rewards.RewardConfig`), ``curvature_weight``, ``observations``
             (extra entries), ``action`` / ``termination`` / ``initial_state`` / ``pixels``

@@ -77,12 +77,14 @@ def test_random_coronary_starts_with_the_wire_clear_of_the_wall(tmp_path) -> Non
     """Pool tree 6 used to start with the pre-bent tip 0.6 mm inside the wall (its root curved
     within the 9 mm of wire pushed past the sheath) and blew up at the second step with no
     action; 5 of the 8 default pool trees started in contact. The root's straight ostium
-    (CoronaryTreeConfig.inlet_straight) keeps the start free."""
+    (CoronaryTreeConfig.inlet_straight) keeps the start free: a contact may be found within
+    the wire's collision margin, none in touch."""
     env = suite.load("random_coronary", "navigate",
                      {"random": 0, "pool_size": 1, "pool_seed": 6, "cache_dir": tmp_path})
     for _ in range(6):
         env.reset()
-        assert env.physics.data.ncon == 0
+        data = env.physics.data
+        assert all(contact.dist > 0 for contact in data.contact[:data.ncon])
         for _ in range(3):
             assert not env.step([0.0, 0.0]).last()
 

@@ -171,12 +171,14 @@ def test_random_coronary_takes_a_wire_and_its_tree_cache_ignores_it(
         return compile_anatomy("simplified_phantom", scene, fit="none")
 
     monkeypatch.setattr(random_coronary, "build_member", fake_member)
-    for wire in ("paper", "workhorse"):
+    for wire in ({}, {"wire": "paper"}, {"wire": "workhorse"}):
         env = suite.load("random_coronary", "navigate",
-                         {"wire": wire, "pool_size": 1, "cache_dir": tmp_path, "random": 0})
+                         {**wire, "pool_size": 1, "cache_dir": tmp_path, "random": 0})
         env.reset()
-    (seed_a, dir_a, scene_a), (seed_b, dir_b, scene_b) = calls
-    assert (seed_a, dir_a) == (seed_b, dir_b)  # same tree folder for both wires
-    assert scene_a.wire == GuidewireConfig() and scene_b.wire == wires.preset("workhorse")
+    (seed_a, dir_a, scene_a), (seed_b, dir_b, scene_b), (_, _, scene_c) = calls
+    assert (seed_a, dir_a) == (seed_b, dir_b)  # same tree folder for every wire
+    # The domain's default: the workhorse, its tip shaped 3 mm at 75°.
+    assert scene_a.wire == wires.shaped(wires.preset("workhorse"), wires.TipShape.degrees(3, 75))
+    assert scene_b.wire == GuidewireConfig() and scene_c.wire == wires.preset("workhorse")
     with pytest.raises(TaskConfigError, match="valid"):
         suite.load("random_coronary", "navigate", {"wire": "noodle", "cache_dir": tmp_path})
