@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 from numpy.typing import NDArray
-from scipy.spatial import ConvexHull, QhullError
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from sim4endor.vessels.axis import AxisSamples
 
@@ -155,6 +155,8 @@ _SEPTUM_STEPS = 16
 #: A point counts as inside another branch's tube when it is deeper than this share of the
 #: tube's radius: the lumen mesh's polygons lie a little inside the tubes they approximate.
 _TUBE_TOLERANCE = 0.02
+#: Lumen vertices per chunk of :func:`wall_offsets`.
+_SEPTUM_CHUNK = 20_000
 
 
 def wall_offsets(vertices: FloatArray, vertex_normals: FloatArray, axis: AxisSamples,
@@ -176,14 +178,30 @@ def wall_offsets(vertices: FloatArray, vertex_normals: FloatArray, axis: AxisSam
     if params.septum_share is None or len(vertices) == 0:
         return offsets
     tree = axis.tree()
+    steps = np.linspace(params.thickness / _SEPTUM_STEPS, params.thickness, _SEPTUM_STEPS)
+    # In chunks: a patient mesh may have millions of vertices, and each step holds 32 axis
+    # samples per vertex.
+    for first in range(0, len(vertices), _SEPTUM_CHUNK):
+        chunk = slice(first, first + _SEPTUM_CHUNK)
+        gap = _septum_gap(vertices[chunk], vertex_normals[chunk], axis, tree, steps)
+        # At a carina's apex the lumens meet; a wall of zero reach there would be a degenerate
+        # solid, so it keeps the share of one step.
+        offsets[chunk] = np.where(np.isfinite(gap),
+                                  params.septum_share * np.maximum(gap, steps[0]),
+                                  params.thickness)
+    return offsets
+
+
+def _septum_gap(vertices: FloatArray, normals: FloatArray, axis: AxisSamples, tree: cKDTree,
+                steps: FloatArray) -> FloatArray:
+    """The last step along each normal before it enters another tube of ``axis`` (m); inf for
+    normals that enter none within the steps, 0 for those inside one at the first step."""
+    gap = np.full(len(vertices), np.inf)
     k = min(32, len(axis.points))
-    free = np.ones(len(vertices), dtype=bool)
-    # At a carina's apex the lumens meet; a wall of zero reach there would be a degenerate
-    # solid, so it keeps the share of one step.
-    previous = params.thickness / _SEPTUM_STEPS
-    for step in np.linspace(params.thickness / _SEPTUM_STEPS, params.thickness, _SEPTUM_STEPS):
-        idx = np.flatnonzero(free)
-        points = vertices[idx] + step * vertex_normals[idx]
+    previous = 0.0
+    for step in steps:
+        idx = np.flatnonzero(np.isinf(gap))
+        points = vertices[idx] + step * normals[idx]
         _, nearest = tree.query(points, k=k)
         nearest = nearest.reshape(len(idx), k)
         offset = points[:, None, :] - axis.points[nearest]
@@ -192,10 +210,9 @@ def wall_offsets(vertices: FloatArray, vertex_normals: FloatArray, axis: AxisSam
         radius = axis.radius[nearest]
         inside = ((across < (1.0 - _TUBE_TOLERANCE) * radius)
                   & (np.abs(along) <= 0.2 * radius)).any(axis=1)
-        offsets[idx[inside]] = params.septum_share * previous
-        free[idx[inside]] = False
+        gap[idx[inside]] = previous
         previous = step
-    return offsets
+    return gap
 
 
 def piece_solid(
