@@ -21,7 +21,6 @@ from sim4endor.vessels.walls import (
     build_hulls,
     hulls_for_piece,
     intrusion,
-    wall_offsets,
 )
 
 R = 1.5e-3
@@ -91,39 +90,6 @@ def test_parallel_build_after_coacd_in_this_process_does_not_hang() -> None:
     result = subprocess.run([sys.executable, "-c", script], env=env, timeout=120,
                             capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
-
-
-def test_the_wall_stops_inside_a_septum_thinner_than_itself() -> None:
-    """Two parallel tubes 0.6 mm apart (a carina's septum is thinner than the 0.8 mm wall): a
-    wall of full thickness would reach 0.2 mm into the other lumen, a ledge the wire's tip
-    catches on. It reaches half the gap there and its full thickness elsewhere."""
-    gap = 0.6e-3
-    tube = trimesh.creation.cylinder(radius=R, height=L, sections=48).subdivide_to_size(0.5e-3)
-    n = 41
-    z = np.linspace(-L / 2, L / 2, n)
-    other_x = 2 * R + gap
-    nodes = np.vstack([np.column_stack([np.zeros(n), np.zeros(n), z]),
-                       np.column_stack([np.full(n, other_x), np.zeros(n), z])])
-    edges = np.vstack([np.column_stack([np.arange(n - 1), np.arange(1, n)]),
-                       np.column_stack([np.arange(n, 2 * n - 1), np.arange(n + 1, 2 * n)])])
-    axis = sample_axis(CenterlineGraph(nodes, np.full(2 * n, R), edges))
-    vertices, normals = np.asarray(tube.vertices), np.asarray(tube.vertex_normals)
-    side = np.abs(normals[:, 2]) < 0.5  # the tube's side wall, not its end caps
-    params = WallParams()
-    offsets = wall_offsets(vertices, normals, axis, params)
-    outer = vertices + offsets[:, None] * normals
-    depth_in_other = R - np.linalg.norm(outer[:, :2] - [other_x, 0.0], axis=1)
-    assert depth_in_other.max() <= 0.02 * R  # never into the other lumen (tube tolerance)
-    facing = side & (normals[:, 0] > 0.99)
-    away = side & (normals[:, 0] < 0)
-    # Half the gap, found to a step of a sixteenth of the wall along rays up to 8° oblique.
-    assert np.all(offsets[facing] <= 0.5 * (gap + 0.1e-3))
-    assert np.all(offsets[facing] >= 0.5 * (gap - params.thickness / 16))
-    np.testing.assert_array_equal(offsets[away], params.thickness)
-    full = wall_offsets(vertices, normals, axis, dataclasses.replace(params, septum_share=None))
-    np.testing.assert_array_equal(full, params.thickness)
-    full_outer = vertices + full[:, None] * normals
-    assert (R - np.linalg.norm(full_outer[:, :2] - [other_x, 0.0], axis=1)).max() > 0.1e-3
 
 
 def _build_in_worker(_: int) -> int:

@@ -27,7 +27,7 @@ from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.axis import AxisSamples, sample_axis
 from sim4endor.vessels.centerline import CenterlineGraph
 from sim4endor.vessels.meshio import boundary_loops, loop_perimeter
-from sim4endor.vessels.walls import Hull, WallParams, convex_hull, wall_offsets
+from sim4endor.vessels.walls import Hull, convex_hull
 
 if TYPE_CHECKING:
     from sim4endor.vessels import Vessel
@@ -113,21 +113,16 @@ def wall_probes(
     vertex_normals: FloatArray,
     face_normals: FloatArray,
     walled: NDArray[np.bool_],
-    thickness: float | FloatArray,
+    thickness: float,
 ) -> FloatArray:
-    """Returns points half a wall thickness outside the lumen surface of walled faces.
-
-    ``thickness`` is one figure (m) or, per lumen vertex, the wall's outward reach
-    (:func:`sim4endor.vessels.walls.wall_offsets`); a face centre's is its vertices' mean.
-    """
-    reach = np.broadcast_to(np.asarray(thickness, dtype=np.float64), (len(vertices),))
+    """Returns points half a wall thickness outside the lumen surface of walled faces."""
     faces = faces[walled]
     verts = np.unique(faces)
     centres = vertices[faces].mean(axis=1)
     return np.vstack(
         [
-            vertices[verts] + 0.5 * reach[verts, None] * vertex_normals[verts],
-            centres + 0.5 * reach[faces].mean(axis=1)[:, None] * face_normals[walled],
+            vertices[verts] + 0.5 * thickness * vertex_normals[verts],
+            centres + 0.5 * thickness * face_normals[walled],
         ]
     )
 
@@ -235,20 +230,16 @@ def check_folder(vessel: Vessel, params: CheckParams | None = None) -> dict[str,
     lumen = _mesh(vessel.root / LUMEN_FILE)
     inlet = vessel.manifest.inlet
     walled = ~inlet_cap(lumen, vessel.inlet_position, vessel.inlet_direction, inlet.radius)
-    wall = vessel.manifest.build.get("wall", {})
-    # A folder built before septum_share existed has the full thickness everywhere.
-    built = WallParams(thickness=float(wall.get("thickness", 0.8e-3)),
-                       septum_share=wall.get("septum_share"))
+    thickness = float(vessel.manifest.build.get("wall", {}).get("thickness", 0.8e-3))
     axis = sample_axis(vessel.centerline)
     lumen_open, _ = lumen_open_fraction(hulls, axis, params)
-    vertices, vertex_normals = np.asarray(lumen.vertices), np.asarray(lumen.vertex_normals)
     probes = wall_probes(
-        vertices,
+        np.asarray(lumen.vertices),
         np.asarray(lumen.faces),
-        vertex_normals,
+        np.asarray(lumen.vertex_normals),
         np.asarray(lumen.face_normals),
         walled,
-        wall_offsets(vertices, vertex_normals, axis, built),
+        thickness,
     )
     wall_closed = wall_closed_fraction(hulls, probes, slack=1e-3 * float(axis.radius.min()))
     data = mujoco.MjData(model)

@@ -6,10 +6,9 @@ diagonal), so the wall is cut into small pieces first:
 1. every lumen face is located on the centerline (branch, arc position in radii, angle around
    the axis in a rotation-minimising frame) and binned by (branch, ``arc_bin`` radii,
    ``sectors`` angular sectors, and whether it faces along the axis as end caps do);
-2. a piece is a closed solid: its lumen faces, the same faces offset outward along the vertex
-   normals by the wall thickness (less across a septum thinner than the wall, see
-   :func:`wall_offsets`), and side walls along the piece boundary. Neighbouring pieces share
-   their boundary, so the wall is closed by construction;
+2. a piece is a closed solid: its lumen faces, the same faces offset outward by the wall
+   thickness along the vertex normals, and side walls along the piece boundary. Neighbouring
+   pieces share their boundary, so the wall is closed by construction;
 3. fast path: if the piece's convex hull intrudes into the lumen by at most
    ``intrusion_tolerance`` radii (the exit distance of an inward ray from every lumen vertex of
    the piece through the hull's half-spaces), the hull is used as is. Most tube pieces take this
@@ -41,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 from numpy.typing import NDArray
-from scipy.spatial import ConvexHull, QhullError, cKDTree
+from scipy.spatial import ConvexHull, QhullError
 
 from sim4endor.vessels.axis import AxisSamples
 
@@ -68,11 +67,6 @@ class WallParams:
         coacd_mcts_iterations: CoACD search iterations (fewer is faster).
         coacd_resolution: CoACD sampling resolution.
         max_split_depth: Bisection depth limit per piece.
-        septum_share: Where another part of the lumen lies closer than ``thickness`` along a
-            lumen vertex's normal (the septum between two branches near their carina), the
-            wall there reaches this share of the gap, so the walls of both sides meet inside
-            the septum instead of poking into the other lumen. ``None`` keeps the full
-            thickness everywhere, as the shipped phantoms were built.
         workers: Processes for the pieces (they are independent). They are spawned, so a
             script building with workers > 1 needs an ``if __name__ == "__main__":`` guard.
     """
@@ -87,12 +81,6 @@ class WallParams:
     coacd_resolution: int = 100
     max_split_depth: int = 12
     workers: int = 2
-    septum_share: float | None = 0.5
-
-    def __post_init__(self) -> None:
-        if self.septum_share is not None and not 0.0 < self.septum_share <= 1.0:
-            raise ValueError(f"WallParams.septum_share must be in (0, 1] or None, "
-                             f"got {self.septum_share!r}.")
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,73 +138,8 @@ def intrusion(hull: Hull, points: FloatArray, inward: FloatArray, slack: float) 
     return np.where(inside, exit_distance, 0.0)
 
 
-#: Steps along a lumen vertex's normal at which :func:`wall_offsets` looks for other lumen.
-_SEPTUM_STEPS = 16
-#: A point counts as inside another branch's tube when it is deeper than this share of the
-#: tube's radius: the lumen mesh's polygons lie a little inside the tubes they approximate.
-_TUBE_TOLERANCE = 0.02
-#: Lumen vertices per chunk of :func:`wall_offsets`.
-_SEPTUM_CHUNK = 20_000
-
-
-def wall_offsets(vertices: FloatArray, vertex_normals: FloatArray, axis: AxisSamples,
-                 params: WallParams) -> FloatArray:
-    """Returns, per lumen vertex, how far the wall reaches outward along its normal (m).
-
-    ``params.thickness``, except where the normal runs into another part of the lumen sooner:
-    the septum between two branches near their carina is thinner than the wall, and a wall of
-    full thickness there pokes into the neighbouring branch. Measured on a generated coronary
-    tree: hull vertices 0.4-0.5 mm inside a diagonal branch 2-3 mm past its carina, a ledge
-    that left the branch half its radius free and held the wire's tip at its ostium. There
-    the wall reaches ``params.septum_share`` of the gap (see :class:`WallParams`).
-
-    The lumen is taken as the union of the centerline's tubes (``axis``): a point is inside
-    when it lies within a sample's radius of the axis, in the slice of the axis around that
-    sample (the samples are at most a fifth of a radius apart, :func:`sample_axis`).
-    """
-    offsets = np.full(len(vertices), params.thickness)
-    if params.septum_share is None or len(vertices) == 0:
-        return offsets
-    tree = axis.tree()
-    steps = np.linspace(params.thickness / _SEPTUM_STEPS, params.thickness, _SEPTUM_STEPS)
-    # In chunks: a patient mesh may have millions of vertices, and each step holds 32 axis
-    # samples per vertex.
-    for first in range(0, len(vertices), _SEPTUM_CHUNK):
-        chunk = slice(first, first + _SEPTUM_CHUNK)
-        gap = _septum_gap(vertices[chunk], vertex_normals[chunk], axis, tree, steps)
-        # At a carina's apex the lumens meet; a wall of zero reach there would be a degenerate
-        # solid, so it keeps the share of one step.
-        offsets[chunk] = np.where(np.isfinite(gap),
-                                  params.septum_share * np.maximum(gap, steps[0]),
-                                  params.thickness)
-    return offsets
-
-
-def _septum_gap(vertices: FloatArray, normals: FloatArray, axis: AxisSamples, tree: cKDTree,
-                steps: FloatArray) -> FloatArray:
-    """The last step along each normal before it enters another tube of ``axis`` (m); inf for
-    normals that enter none within the steps, 0 for those inside one at the first step."""
-    gap = np.full(len(vertices), np.inf)
-    k = min(32, len(axis.points))
-    previous = 0.0
-    for step in steps:
-        idx = np.flatnonzero(np.isinf(gap))
-        points = vertices[idx] + step * normals[idx]
-        _, nearest = tree.query(points, k=k)
-        nearest = nearest.reshape(len(idx), k)
-        offset = points[:, None, :] - axis.points[nearest]
-        along = np.einsum("ikj,ikj->ik", offset, axis.tangent[nearest])
-        across = np.sqrt(np.maximum(np.einsum("ikj,ikj->ik", offset, offset) - along**2, 0.0))
-        radius = axis.radius[nearest]
-        inside = ((across < (1.0 - _TUBE_TOLERANCE) * radius)
-                  & (np.abs(along) <= 0.2 * radius)).any(axis=1)
-        gap[idx[inside]] = previous
-        previous = step
-    return gap
-
-
 def piece_solid(
-    vertices: FloatArray, triangles: IntArray, normals: FloatArray, offsets: FloatArray
+    vertices: FloatArray, triangles: IntArray, normals: FloatArray, thickness: float
 ) -> trimesh.Trimesh:
     """Returns the closed wall solid over lumen ``triangles``: inner, outer skin, side walls.
 
@@ -224,12 +147,12 @@ def piece_solid(
         vertices: (V, 3) lumen vertices (m).
         triangles: (F, 3) the piece's lumen triangles (indices into ``vertices``).
         normals: (V, 3) unit vertex normals pointing out of the lumen.
-        offsets: (V,) outward reach of the wall at each vertex (m), from :func:`wall_offsets`.
+        thickness: Wall thickness (m).
     """
     verts, local = np.unique(triangles, return_inverse=True)
     local = local.reshape(-1, 3)
     inner = vertices[verts]
-    outer = inner + normals[verts] * offsets[verts, None]
+    outer = inner + normals[verts] * thickness
     n = len(verts)
     # Lumen normals point out of the lumen, into the wall: the inner skin is reversed.
     skins = [local[:, ::-1], local + n]
@@ -261,8 +184,6 @@ class WallContext:
         face_u: (F,) arc position along the branch (radii).
         face_angle: (F,) angle around the axis (rad).
         params: Wall parameters.
-        vertex_offsets: (V,) outward reach of the wall at each vertex (m,
-            :func:`wall_offsets`); ``None``: ``params.thickness`` everywhere.
     """
 
     vertices: FloatArray
@@ -273,14 +194,6 @@ class WallContext:
     face_u: FloatArray
     face_angle: FloatArray
     params: WallParams
-    vertex_offsets: FloatArray | None = None
-
-    @property
-    def offsets(self) -> FloatArray:
-        """(V,) outward reach of the wall at each vertex (m)."""
-        if self.vertex_offsets is None:
-            return np.full(len(self.vertices), self.params.thickness)
-        return self.vertex_offsets
 
     def subset(self, faces: IntArray) -> WallContext:
         """Returns the context restricted to ``faces`` (re-indexed from 0)."""
@@ -294,7 +207,6 @@ class WallContext:
             face_u=self.face_u[faces],
             face_angle=self.face_angle[faces],
             params=self.params,
-            vertex_offsets=None if self.vertex_offsets is None else self.vertex_offsets[verts],
         )
 
 
@@ -310,14 +222,14 @@ def _accept(hulls: list[Hull], ctx: WallContext, faces: IntArray) -> bool:
 
 
 def _solid_hull(ctx: WallContext, faces: IntArray) -> Hull | None:
-    solid = piece_solid(ctx.vertices, ctx.faces[faces], ctx.vertex_normals, ctx.offsets)
+    solid = piece_solid(ctx.vertices, ctx.faces[faces], ctx.vertex_normals, ctx.params.thickness)
     return convex_hull(np.asarray(solid.vertices))
 
 
 def _coacd_hulls(ctx: WallContext, faces: IntArray) -> list[Hull]:
     import coacd  # heavy import, only needed for non-convex pieces
 
-    solid = piece_solid(ctx.vertices, ctx.faces[faces], ctx.vertex_normals, ctx.offsets)
+    solid = piece_solid(ctx.vertices, ctx.faces[faces], ctx.vertex_normals, ctx.params.thickness)
     solid.merge_vertices()
     coacd.set_log_level("error")
     # The piece solid is closed by construction, so CoACD's manifold check and remeshing are

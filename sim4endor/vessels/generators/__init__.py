@@ -69,13 +69,11 @@ class Generator:
     wall: WallParams = field(default_factory=WallParams)
 
 
-#: The shipped phantom folders (vessels/) were built with plain hulls and bisection, these
-#: (then default) CoACD settings and a wall of full thickness at the carinas, which the
-#: manifest records; a training job uses the folders and a test regenerates them, so their
-#: generators stay pinned to it (the paper's Table I is reproduced on these walls).
+#: The shipped phantom folders (vessels/) were built with plain hulls and bisection and these
+#: (then default) CoACD settings, which the manifest records; a training job uses the folders
+#: and a test regenerates them byte for byte, so their generators stay pinned to it.
 SHIPPED_PHANTOM_WALL = WallParams(
-    use_coacd=False, coacd_threshold=0.05, coacd_mcts_iterations=20, coacd_resolution=300,
-    septum_share=None,
+    use_coacd=False, coacd_threshold=0.05, coacd_mcts_iterations=20, coacd_resolution=300
 )
 
 
