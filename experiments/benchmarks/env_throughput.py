@@ -30,16 +30,15 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-import mujoco
 import numpy as np
-from dm_control.mujoco.wrapper import MjData, MjModel
 
 from sim4endor import suite
 from sim4endor.envs.gym import NavigationEnv
+from sim4endor.physics import GuidewirePhysics
 
-#: A step of the bare-physics replay: the compiled model of the anatomy an episode starts in
-#: (None within an episode) and the driver targets (insertion m, rotation rad).
-Command = tuple[mujoco.MjModel | None, tuple[float, float]]
+#: A step of the bare-physics replay: a copy of the physics just after a reset (None within an
+#: episode) and the driver targets (insertion m, rotation rad).
+Command = tuple[GuidewirePhysics | None, tuple[float, float]]
 #: A wire setting as suite.load takes it: a preset name, a mapping of fields, or None (the default).
 Wire = str | dict[str, Any] | None
 #: Resets before the timed loops: a pool of 8 trees drawn 40 times misses one with
@@ -65,7 +64,7 @@ class EnvRun:
         physics_cpu_s: Thread CPU seconds inside ``physics.step`` (timed in the same run, so
             ``cpu_s - physics_cpu_s`` is the env's own cost; time the process spends
             descheduled by other jobs counts in neither).
-        commands: per step, the anatomy's model at a reset (else None) and the driver
+        commands: per step, a copy of the physics at a reset (else None) and the driver
             targets, for the bare-physics replay.
         n_sub_steps: Physics steps per env step.
         timestep: Physics time step (s).
@@ -105,9 +104,12 @@ def env_loop(domain: str, task: str, actions: np.ndarray, wire: Wire) -> EnvRun:
             inner[0] += time.thread_time() - start
 
     physics.step = timed_step  # instance attribute: only this benchmark's physics is timed
-    # (anatomy model or None, driver targets) per step: the replay resets where the env did,
-    # into the same anatomy and start pose, so both loops simulate the same trajectory.
-    commands: list[Command] = [(env.task.anatomy.model, physics.driver_targets())]
+    # (state after a reset or None, driver targets) per step: the replay starts each episode
+    # from a copy of the env's state after its reset (anatomy, start pose, solver warm start),
+    # so both loops simulate the same trajectory. A copy, not the reset's driver targets: the
+    # _redirect tasks' reset drives the wire down another branch, and placing it straight at
+    # that insertion put it through the wall (mjWARN_BADQACC in the replay).
+    commands: list[Command] = [(physics.copy(share_model=True), physics.driver_targets())]
     contacts = 0
     start, cpu_start = time.perf_counter(), time.thread_time()
     for action in actions:
@@ -116,35 +118,30 @@ def env_loop(domain: str, task: str, actions: np.ndarray, wire: Wire) -> EnvRun:
         commands.append((None, physics.driver_targets()))
         if reset:
             env.reset()
-            commands.append((env.task.anatomy.model, physics.driver_targets()))
+            commands.append((physics.copy(share_model=True), physics.driver_targets()))
     cpu = time.thread_time() - cpu_start
     wall = time.perf_counter() - start
     return EnvRun(wall, cpu, inner[0], commands, env._n_sub_steps, physics.timestep(),
                   contacts / len(actions))
 
 
-def physics_loop(
-    domain: str, task: str, commands: list[Command], n_sub_steps: int, wire: Wire
-) -> float:
-    """Returns the CPU seconds to replay the same resets and driver targets on the bare physics."""
-    env = suite.load(domain, task, _kwargs(wire))
-    env.reset()
-    physics = env.physics
-    loaded = None
-    start = time.thread_time()
-    for model, (insertion, rotation) in commands:
-        if model is not None:
-            if model is not loaded:
-                # What the task does when an episode draws another tree of a pool.
-                physics._reload_from_data(MjData(MjModel(model)))
-                loaded = model
-            with physics.reset_context():
-                physics.place_driver(insertion, rotation)
+def physics_loop(commands: list[Command], n_sub_steps: int) -> float:
+    """Returns the CPU seconds to replay the same episodes' driver targets on the bare physics
+    (the steps only: restoring the state at a reset is not timed)."""
+    physics = None
+    elapsed = 0.0
+    for snapshot, (insertion, rotation) in commands:
+        if snapshot is not None:
+            # Copied again: the next repeat replays the same snapshots.
+            physics = snapshot.copy(share_model=True)
             continue
+        assert physics is not None, "the commands start with a reset"
+        start = time.thread_time()
         physics.set_driver_targets(insertion, rotation)
         with physics.suppress_physics_errors():
             physics.step(n_sub_steps)
-    return time.thread_time() - start
+        elapsed += time.thread_time() - start
+    return elapsed
 
 
 def gym_loop(domain: str, task: str, actions: np.ndarray, wire: Wire) -> float:
@@ -191,7 +188,7 @@ def measure(domain: str, task: str, steps: int, repeats: int, wire: Wire = None
         run = env_loop(domain, task, actions, wire)
         runs.append(run)
         overheads.append(100.0 * (run.cpu_s - run.physics_cpu_s) / run.physics_cpu_s)
-        physics_runs.append(physics_loop(domain, task, run.commands, run.n_sub_steps, wire))
+        physics_runs.append(physics_loop(run.commands, run.n_sub_steps))
         gym_runs.append(gym_loop(domain, task, actions, wire))
     env_s = min(run.wall_s for run in runs)
     physics_s, gym_s = min(physics_runs), min(gym_runs)
