@@ -17,6 +17,14 @@ PATH_SPACING = 0.0025
 #: unsaturated distance, froze at the start of 20 of its 32 missed held-out targets, every one
 #: 104-144 mm away (docs/results/generalisation/results.md).
 DISTANCE_HORIZON = 0.1
+#: The ``tip_force`` and ``wall_force`` entries saturate here (N), ten times the driver's
+#: largest push (0.5 N). The scripted expert's wall force on tuning trees 300-303 (5,825
+#: control steps) had a median of 0.02 N and a 90th percentile of 0.43 N; the 2.5 % of steps
+#: above 5 N read up to 2.7 kN, the contact artefact of a shaft segment pinched in a tight bend
+#: (docs/tasks/coronary.md), which would reach a network as inputs in the thousands. Saturated,
+#: both entries still say "pressing hard"; the tip-force failure and the step's info read the
+#: forces themselves.
+FORCE_HORIZON = 5.0
 
 #: Observation entries every task returns: the paper's state s_t = [p_t, v_t].
 DEFAULT_OBSERVATIONS: tuple[str, ...] = ("tip_position", "tip_velocity")

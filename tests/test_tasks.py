@@ -10,7 +10,7 @@ import pytest
 from navigation_helpers import require_vessel
 
 from sim4endor import suite
-from sim4endor.observations import DISTANCE_HORIZON
+from sim4endor.observations import DISTANCE_HORIZON, FORCE_HORIZON
 from sim4endor.rewards import RewardConfig
 from sim4endor.tasks import (
     InitialStateConfig,
@@ -176,6 +176,23 @@ def test_the_distance_entry_saturates_at_the_horizon() -> None:
     observed = env.reset().observation["manifold_distance"][0]
     assert env.task.manifold_distance()(env.physics.tip_position()) > DISTANCE_HORIZON
     assert observed == DISTANCE_HORIZON
+
+
+@pytest.mark.parametrize("force", [0.3, 1234.0])
+def test_the_force_entries_saturate_but_the_info_does_not(
+        force: float, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A pinched shaft segment reads kilonewtons (docs/tasks/coronary.md); the observation
+    caps them, the step's info and the tip-force failure keep the force itself."""
+    env = suite.load("simplified_phantom", "task_a",
+                     {"observations": ("tip_force", "wall_force"), "random": 0})
+    env.reset()
+    physics = type(env.physics)
+    monkeypatch.setattr(physics, "wall_contact_force", lambda self: force)
+    monkeypatch.setattr(physics, "tip_contact_force", lambda self: force / 10)
+    obs = env.step(INSERT).observation
+    assert obs["wall_force"][0] == min(force, FORCE_HORIZON)
+    assert obs["tip_force"][0] == min(force / 10, FORCE_HORIZON)
+    assert env.task.step_info()["wall_force"] == force
 
 
 def test_pixels_show_the_lumen_and_the_wire_without_opengl() -> None:

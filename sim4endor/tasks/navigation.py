@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from sim4endor import rewards
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
-from sim4endor.observations import DISTANCE_HORIZON, PATH_POINTS
+from sim4endor.observations import DISTANCE_HORIZON, FORCE_HORIZON, PATH_POINTS
 from sim4endor.tasks import starts
 from sim4endor.tasks.anatomy import Anatomy, AnatomySource
 from sim4endor.tasks.config import NavigationConfig, TaskConfigError
@@ -435,9 +435,9 @@ class NavigationTask(base.Task):
         if name == "pixels":
             return self._fluoroscopy(physics)
         if name == "tip_force":
-            return np.array([physics.tip_contact_force()])
+            return np.array([min(physics.tip_contact_force(), FORCE_HORIZON)])
         if name == "wall_force":
-            return np.array([physics.wall_contact_force()])
+            return np.array([min(physics.wall_contact_force(), FORCE_HORIZON)])
         assert view is not None  # get_observation computes it for these entries
         if name == "path_ahead":
             return view.path_ahead.reshape(-1)
