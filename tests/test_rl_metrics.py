@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 import torch
 from tensordict import TensorDict
 
+from sim4endor import _json as strict_json
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.evaluation import EpisodeKeys, episode_from_rollout, success_fraction
 from sim4endor.rl.metrics import Episode, describe, path_length, spl_term, summarize
@@ -20,6 +22,20 @@ def _straight(length: float, steps: int) -> np.ndarray:
     """Tip moving along +x from the origin in equal steps."""
     x = np.linspace(0.0, length, steps + 1)
     return np.stack([x, np.zeros_like(x), np.zeros_like(x)], axis=1)
+
+
+def test_an_unstable_episode_adds_no_force_and_the_json_stays_json() -> None:
+    """The task reports a diverged step's forces as infinite; the maxima leave it out, and
+    whatever non-finite value reaches the printed JSON is written as null."""
+    episodes = [*_scripted_episodes(),
+                Episode(_straight(0.05, 20), False, 1.0, np.array([0.4, math.inf]), 0.1,
+                        -100.0, "instability", np.array([0.2, math.inf]))]
+    metrics = summarize(episodes)
+    assert metrics["max_wall_force_n"] == pytest.approx(1.2)
+    assert metrics["max_tip_force_n"] == pytest.approx(0.2)
+    text = strict_json.dumps({"a": math.inf, "b": [1.5, math.nan, {"c": -math.inf}], "d": "x"})
+    assert json.loads(text, parse_constant=lambda token: pytest.fail(token)) == {
+        "a": None, "b": [1.5, None, {"c": None}], "d": "x"}
 
 
 def test_path_length_of_a_3_4_5_polyline() -> None:

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from sim4endor import _json as strict_json
 from sim4endor import suite
 from sim4endor.envs.gym import NavigationEnv
 from sim4endor.physics import GuidewirePhysics
@@ -257,7 +258,7 @@ def main() -> None:
     if not args.all:
         result = measure(args.domain, args.task, args.steps, args.repeats, args.wire)
         if args.json:
-            print(json.dumps(result))
+            print(strict_json.dumps(result))
             return
         for key, value in result.items():
             print(f"{key:30s} {value:.3f}" if isinstance(value, float) else f"{key:30s} {value}")
@@ -268,7 +269,7 @@ def main() -> None:
     for domain, task in suite.ALL_TASKS:
         result = measure(domain, task, args.steps, args.repeats, args.wire)
         if args.json:
-            print(json.dumps(result), flush=True)
+            print(strict_json.dumps(result), flush=True)
         else:
             cells = (fmt.format(result[key]) for _, key, fmt in _TABLE)
             print("| " + " | ".join(cells) + " |", flush=True)

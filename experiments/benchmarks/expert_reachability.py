@@ -27,9 +27,9 @@ from __future__ import annotations
 
 import argparse
 import collections
-import json
 import math
 
+from sim4endor import _json as strict_json
 from sim4endor import suite
 from sim4endor.tasks.expert import CenterlineExpert, ProbingExpert, run_expert
 
@@ -76,7 +76,7 @@ def coronary_reachability(first_seed: int, trees: int, wire: str | dict[str, obj
             row = {"seed": seed, "tree": env.task.anatomy.vessel.name, "target": target,
                    "outcome": outcome, "time_s": round(env.physics.time(), 2),
                    "distance_mm": round(float(info["manifold_distance"]) * 1e3, 1)}
-            print(json.dumps(row) if as_json else
+            print(strict_json.dumps(row) if as_json else
                   f"{row['tree']} {target}: {outcome} at {row['time_s']} s, "
                   f"D {row['distance_mm']} mm", flush=True)
             env.close()
@@ -85,7 +85,7 @@ def coronary_reachability(first_seed: int, trees: int, wire: str | dict[str, obj
                "trees": trees, "first_seed": first_seed, "episodes": total,
                "successes": outcomes["success"],
                "success_rate": outcomes["success"] / total, "outcomes": dict(outcomes)}
-    print(json.dumps(summary) if as_json else
+    print(strict_json.dumps(summary) if as_json else
           f"coronary ({wire} wire, {type(expert).__name__}, {trees} trees from seed "
           f"{first_seed}): "
           f"{outcomes['success']}/{total} reached ({outcomes['success'] / total:.0%}); "
@@ -116,7 +116,7 @@ def main() -> None:
     for domain, task in TASKS:
         row = reachability(domain, task, args.episodes, expert)
         if args.json:
-            print(json.dumps(row), flush=True)
+            print(strict_json.dumps(row), flush=True)
             continue
         others = ", ".join(f"{k} {v}" for k, v in row["other_outcomes"].items()) or "none"
         time = "--" if row["mean_time_s"] is None else f"{row['mean_time_s']:.2f} s"

@@ -66,7 +66,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import os
 import sys
@@ -75,6 +74,7 @@ import time
 import numpy as np
 from dm_control.rl import control
 
+from sim4endor import _json as strict_json
 from sim4endor import vessels
 from sim4endor.models import push, tip_load, torque, validation, wires
 from sim4endor.models.guidewire import GuidewireConfig
@@ -396,7 +396,7 @@ def main() -> None:
     for name, row in inertia.items():
         print(f"inertia {name}: {row}", file=log)
     print(f"total {time.perf_counter() - started:.0f} s", file=log)
-    print(json.dumps(result) if args.json else result)
+    print(strict_json.dumps(result) if args.json else result)
 
 
 if __name__ == "__main__":

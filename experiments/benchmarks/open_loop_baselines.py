@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures
-import json
 import multiprocessing
 import time
 from pathlib import Path
 from typing import Any
 
+from sim4endor import _json as strict_json
 from sim4endor import registry
 from sim4endor._atomic import atomic_write_text
 from sim4endor.rl import baselines as bl
@@ -74,7 +74,7 @@ def main() -> None:
         record = {"report_seed": bl.REPORT_SEED, "episodes": args.episodes,
                   "selection_seed": bl.SELECTION_SEED, "select_episodes": args.select_episodes,
                   "grid": [list(a) for a in bl.CONSTANT_GRID], "rows": rows}
-        atomic_write_text(args.json, json.dumps(record, indent=1) + "\n")
+        atomic_write_text(args.json, strict_json.dumps(record, indent=1) + "\n")
 
 
 def _cell(row: dict[str, Any]) -> str:

@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
-import json
 import os
 import statistics
 import time
@@ -32,6 +31,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs import EnvBase, ExplorationType, set_exploration_type
 
+from sim4endor import _json as strict_json
 from sim4endor.rl import ray_backend
 from sim4endor.rl.algorithms import Agent, build_agent, learner_device
 from sim4endor.rl.config import ALGORITHMS, TrainConfig, default_config
@@ -167,7 +167,7 @@ def main() -> None:
     report["load_average_1min_end"] = round(os.getloadavg()[0], 2)
     env.close()
     if args.json:
-        print(json.dumps(report))
+        print(strict_json.dumps(report))
     else:
         for key, value in report.items():
             print(f"{key:<28} {value}")

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
+from sim4endor import _json as strict_json
 from sim4endor import assets
 from sim4endor.cli import args as arg_types
 from sim4endor.rl.metrics import describe
@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
                            task_arguments=other_task, progress=not args.no_progress,
                            record=args.run_dir.parent != assets.policies_dir())
     if args.json:
-        print(json.dumps(metrics))  # noqa: T201
+        print(strict_json.dumps(metrics))  # noqa: T201
     else:
         width = max(len(key) for key in metrics)
         for key, value in metrics.items():
@@ -103,7 +103,7 @@ def _run_suite(args: argparse.Namespace) -> int:
         args.run_dir, config, with_baselines=not args.no_baselines,
         progress=not args.no_progress)
     if args.json:
-        print(json.dumps(result))  # noqa: T201
+        print(strict_json.dumps(result))  # noqa: T201
     else:
         print(generalisation.markdown(result["rows"]))  # noqa: T201
     return 0
@@ -124,7 +124,7 @@ def _run_vessel(args: argparse.Namespace) -> int:
     metrics = generalisation.evaluate_vessel(args.run_dir, args.vessel, config,
                                              progress=not args.no_progress)
     if args.json:
-        print(json.dumps(metrics))  # noqa: T201
+        print(strict_json.dumps(metrics))  # noqa: T201
         return 0
     for target, row in metrics["targets"].items():
         print(f"{target:<12}  {describe(row)}")  # noqa: T201

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
+from sim4endor import _json as strict_json
 from sim4endor.cli import args as arg_types
 from sim4endor.rl.config import ALGORITHMS
 
@@ -87,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
             f"train {config.algorithm} ...` or pass a {args.algorithm} configuration."
         )
     metrics = train(config, args.out, progress=not args.no_progress, ray_address=args.ray_address)
-    print(json.dumps(metrics))  # noqa: T201
+    print(strict_json.dumps(metrics))  # noqa: T201
     return 0
 
 
@@ -107,4 +107,4 @@ def experiment_script(config_path: Path) -> None:
     args = parser.parse_args()
     from sim4endor.rl.trainer import train_from_file
 
-    print(json.dumps(train_from_file(config_path, args.out, tuple(args.overrides))))  # noqa: T201
+    print(strict_json.dumps(train_from_file(config_path, args.out, tuple(args.overrides))))  # noqa: T201

@@ -7,12 +7,12 @@ group and sets ``func``; :func:`register` adds them all, so a new action is one 
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from sim4endor import _json as strict_json
 from sim4endor.cli import args as arg_types
 from sim4endor.errors import Sim4EndoRError
 
@@ -111,7 +111,7 @@ def run_check(args: argparse.Namespace) -> int:
 
     vessel = load(args.vessel)
     report = check_folder(vessel)
-    _print(json.dumps(report) if args.json else _summary(vessel) + f"; now {report}")
+    _print(strict_json.dumps(report) if args.json else _summary(vessel) + f"; now {report}")
     return 0 if report["passed"] else 1
 
 

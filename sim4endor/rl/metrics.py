@@ -10,6 +10,8 @@
 * ``max_wall_force_n``: largest wire–wall contact force seen in any episode.
 * ``max_tip_force_n``: largest wall force on the shaped tip (the safety signal whose limit
   ends an episode) seen in any episode; 0 when the environment does not report it.
+  Both leave out the step that ends an episode in ``instability``: the simulation diverged
+  there, and the task reports its forces as infinite, not as a measurement.
 * ``mean_return``: mean sum of rewards.
 * ``outcomes``: how the episodes ended, counted: ``success``, a failure reason (e.g.
   ``tip_force``) or ``timeout`` (neither before the step limit).
@@ -102,8 +104,6 @@ def summarize(episodes: Sequence[Episode]) -> dict[str, float | int | dict[str, 
         raise Sim4EndoRError("Cannot summarise zero evaluation episodes; use --trials >= 1.")
     lengths = [path_length(e.tip_positions) for e in episodes]
     times = [e.duration_s for e in episodes if e.success]
-    forces = [float(e.wall_forces.max()) for e in episodes if e.wall_forces.size]
-    tip_forces = [float(e.tip_forces.max()) for e in episodes if e.tip_forces.size]
     return {
         "success_rate": float(np.mean([e.success for e in episodes])),
         "mean_completion_time_s": float(np.mean(times)) if times else None,
@@ -116,8 +116,8 @@ def summarize(episodes: Sequence[Episode]) -> dict[str, float | int | dict[str, 
                 ]
             )
         ),
-        "max_wall_force_n": max(forces) if forces else 0.0,
-        "max_tip_force_n": max(tip_forces) if tip_forces else 0.0,
+        "max_wall_force_n": _largest_finite([e.wall_forces for e in episodes]),
+        "max_tip_force_n": _largest_finite([e.tip_forces for e in episodes]),
         "mean_return": float(np.mean([e.episode_return for e in episodes])),
         "outcomes": dict(sorted(Counter(e.outcome for e in episodes).items())),
         "trials": len(episodes),
@@ -144,3 +144,9 @@ def describe(metrics: Mapping[str, Any]) -> str:
     if not is_missing(metrics["mean_completion_time_s"]):
         text += f", {metrics['mean_completion_time_s']:.2f} s"
     return text
+
+
+def _largest_finite(readings: Sequence[NDArray[np.float64]]) -> float:
+    """The largest finite value of all ``readings``; 0 when there is none."""
+    values = np.concatenate([np.zeros(1), *readings])
+    return float(values[np.isfinite(values)].max())

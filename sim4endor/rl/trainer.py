@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import json
 import logging
 import time
 from pathlib import Path
@@ -33,6 +32,7 @@ from torchrl.record.loggers import Logger
 from tqdm.auto import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
+from sim4endor import _json as strict_json
 from sim4endor._atomic import atomic_write_text
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl import checkpoint, ray_backend
@@ -62,7 +62,7 @@ def evaluation_record(progress: checkpoint.Progress, episodes: list[Episode]) ->
 
 def write_final_evaluation(run_dir: Path, metrics: dict[str, Any]) -> None:
     """Writes ``run_dir/evaluation.json``, what the tables read."""
-    atomic_write_text(Path(run_dir) / EVALUATION_FILE, json.dumps(metrics, indent=2) + "\n")
+    atomic_write_text(Path(run_dir) / EVALUATION_FILE, strict_json.dumps(metrics, indent=2) + "\n")
 
 
 class RunDirError(Sim4EndoRError):
@@ -405,7 +405,7 @@ class _Loop:
                     self.logger.log_scalar(f"eval/{key}", float(value), step=state.frames)
         path = self.run_dir / EVALUATIONS_FILE
         previous = path.read_text() if path.is_file() else ""
-        atomic_write_text(path, previous + json.dumps(metrics) + "\n")
+        atomic_write_text(path, previous + strict_json.dumps(metrics) + "\n")
         return metrics
 
     def final_evaluation(self, state: checkpoint.Progress) -> dict[str, Any]:
