@@ -2,8 +2,10 @@
 
 Python's :func:`json.dumps` writes non-finite floats as ``NaN`` / ``Infinity``, which are not
 JSON (RFC 8259): ``jq``, JavaScript and most other parsers reject the whole line. A diverged
-episode or a loss that blew up produces such values, so every JSON the package prints or
-writes goes through :func:`dumps`, which writes them as ``null`` (no value).
+episode or a loss that blew up produces such values, so what reports measurements goes through
+:func:`dumps`, which writes them as ``null`` (no value): the CLI's ``--json`` lines, a run's
+evaluation files and the benchmarks' output. Vessel folders' data files and exported policies'
+contracts keep :func:`json.dumps`: they hold geometry and settings, never a measurement.
 """
 
 from __future__ import annotations
