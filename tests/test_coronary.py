@@ -137,6 +137,47 @@ def test_a_tight_bend_fits_in_its_arterys_drawn_length(side: str) -> None:
     assert len(bent) >= len(graph.branch_names) - 2
 
 
+#: Branches that run over the heart's surface beside their parent (epicardial), and branches
+#: that continue their parent's course, by side.
+EPICARDIAL = {"left": ("LAD_proximal", "LCX_proximal", "D1", "D2", "OM1"),
+              "right": ("AM", "PDA", "PLB")}
+CONTINUATIONS = {"left": ("LAD_mid", "LAD_distal", "LCX_distal"),
+                 "right": ("RCA_mid", "RCA_distal")}
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_side_branches_leave_along_the_hearts_surface(side: str) -> None:
+    # An artery's steady turn is the heart's surface under it, so the turn points into the
+    # heart. Diagonals, marginals and the LM's two daughters run on that surface: they leave
+    # across the turn (into the surface's tangent plane), not off the heart nor into it.
+    # Measured on trees without random curvature, where a parent's end is a circular arc.
+    config = CoronaryArteriesConfig(side=side, curvature_rms=0.0, tight_bend_probability=0.0)
+    parents = {spec.name: spec.parent for spec in arteries(side)}
+    into_heart: dict[str, list[float]] = {}
+    for seed in range(12):
+        graph = coronary_arteries(config, seed).centerline
+        for index, name in enumerate(graph.branch_names):
+            if not parents[name]:
+                continue
+            parent = graph.nodes[np.asarray(graph.branch) == graph.branch_names.index(
+                parents[name])]
+            child = graph.nodes[np.asarray(graph.branch) == index]
+            end = parent[-1]
+            tangent = (end - parent[-2]) / np.linalg.norm(end - parent[-2])
+            chord = end - parent[-9]  # the parent's last 4 mm: its turn points against it
+            heart = tangent * (chord @ tangent) - chord
+            heart /= np.linalg.norm(heart)
+            leaving = child[3] - end
+            leaving -= tangent * (leaving @ tangent)
+            into_heart.setdefault(name, []).append(
+                float(leaving @ heart / np.linalg.norm(leaving)))
+    for name in EPICARDIAL[side]:
+        assert abs(np.mean(into_heart[name])) < 0.3, name
+        assert np.mean(np.abs(into_heart[name])) < 0.6, name
+    for name in CONTINUATIONS[side]:
+        assert np.mean(into_heart[name]) > 0.7, name
+
+
 @pytest.mark.parametrize("side", ["left", "right"])
 def test_every_tree_is_a_valid_lumen(side: str) -> None:
     for seed in range(8):
