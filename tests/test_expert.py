@@ -144,6 +144,27 @@ def test_a_stuck_probing_expert_follows_the_best_aim_of_its_probe() -> None:
     np.testing.assert_array_equal(expert(env.physics, env.task), plain(env.physics, env.task))
 
 
+def test_the_screen_replaces_a_step_that_would_fail_by_the_first_safe_fallback() -> None:
+    """The insertion limit half a push step ahead: the plain expert pushes into it, the
+    screened expert holds the insertion and keeps the plain expert's roll."""
+    kwargs = {"random": 0}
+    free = suite.load("simplified_phantom", "task_b", kwargs)
+    free.reset()
+    start, _ = free.physics.driver_targets()
+    step = free.task.config.action.max_insertion_step
+    limit = {"termination": {"max_insertion": start + 0.5 * step}}
+    env = suite.load("simplified_phantom", "task_b", {**kwargs, **limit})
+    env.reset()
+    plain = CenterlineExpert()(env.physics, env.task)
+    assert plain[0] > 0.5  # its push would cross the limit
+    unscreened = ProbingExpert(probe=ProbeConfig(screen=False))(env.physics, env.task)
+    np.testing.assert_array_equal(unscreened, plain)
+    screened = ProbingExpert()(env.physics, env.task)
+    np.testing.assert_array_equal(screened, [0.0, plain[1]])
+    env.step(screened)
+    assert not env.task.step_info()["failure"]
+
+
 def test_an_aim_offset_rolls_the_tip_away_from_the_path_turn() -> None:
     """ExpertConfig.roll_offset_deg: 0 (the default) leaves the plain expert's actions bit
     for bit; aimed 180 degrees off, the expert holds the insertion where the plain one,

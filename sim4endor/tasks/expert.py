@@ -26,6 +26,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -42,6 +43,8 @@ if TYPE_CHECKING:  # navigation imports this module for its wrong-branch starts
     from sim4endor.tasks.navigation import NavigationTask
 
 FloatArray = NDArray[np.float64]
+#: Anything that maps the simulation's state to an action, as the experts do.
+Policy = Callable[[GuidewirePhysics, "NavigationTask"], FloatArray]
 
 
 @dataclass(frozen=True)
@@ -209,6 +212,12 @@ class ProbeConfig:
             simulated control steps.
         min_gain: A plan is followed only if it brings the tip this much (m) closer to the
             target than the episode's closest approach so far, or reaches it.
+        screen: Simulate each action that is not a plan's one control step ahead on a copy,
+            and replace one that would end the episode with a failure (a tip-force spike as
+            the tip snaps off a ledge, an instability) by the first safe one of: hold the
+            insertion and roll, pull back and roll, pull straight back. Plans need no screen:
+            their lookahead stops before a failure. Costs about one extra control step of
+            simulation per step.
     """
 
     roll_offsets_deg: tuple[float, ...] = (0.0, 30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 180.0)
@@ -216,6 +225,7 @@ class ProbeConfig:
     stall_steps: int = 60
     max_probes: int = 12
     min_gain: float = 0.001
+    screen: bool = True
 
 
 class ProbingExpert(CenterlineExpert):
@@ -228,7 +238,8 @@ class ProbingExpert(CenterlineExpert):
     brought the tip no closer), this expert simulates each aim of ``probe.roll_offsets_deg`` for
     ``probe.horizon`` steps on a copy of the physics and the task, and then replays the
     actions of the aim that got closest, up to its closest approach. MuJoCo is deterministic,
-    so the episode reaches the state the copy reached.
+    so the episode reaches the state the copy reached. With ``probe.screen`` it also never
+    takes a step that it has simulated to end in a failure.
 
     It is a planner with a perfect model of the simulation: it answers whether the wire can
     reach a target at all (the reachability check of an anatomy), not how a robot without
@@ -266,7 +277,19 @@ class ProbingExpert(CenterlineExpert):
                     self._backing_off, self._best = 0, math.inf
         if self._plan:
             return self._plan.pop(0)
-        return super().__call__(physics, task)
+        action = super().__call__(physics, task)
+        return self._screened(physics, task, action) if self.probe.screen else action
+
+    def _screened(self, physics: GuidewirePhysics, task: NavigationTask,
+                  action: FloatArray) -> FloatArray:
+        """``action``, or the first fallback whose next step does not fail (see ``screen``)."""
+        substeps = task.config.action.physics_steps(physics.timestep())
+        fallbacks = ([0.0, action[1]], [self.config.back_push, action[1]], [-1.0, 0.0])
+        for candidate in (action, *map(np.array, fallbacks)):
+            _, _, safe = lookahead(physics, task, lambda *_, a=candidate: a, substeps, 1)
+            if safe:
+                return candidate
+        return action  # every choice fails: the state is lost whatever the expert does
 
     def _probe_aims(self, physics: GuidewirePhysics, task: NavigationTask) -> list[FloatArray]:
         """The actions of the aim that gets closest, or [] if none gets closer than before."""
@@ -285,10 +308,11 @@ class ProbingExpert(CenterlineExpert):
         return actions if reached or closest < self._closest - self.probe.min_gain else []
 
 
-def lookahead(physics: GuidewirePhysics, task: NavigationTask, expert: CenterlineExpert,
-               substeps: int, steps: int) -> tuple[bool, float, list[FloatArray]]:
+def lookahead(physics: GuidewirePhysics, task: NavigationTask, expert: Policy,
+              substeps: int, steps: int) -> tuple[bool, float, list[FloatArray]]:
     """Runs ``expert`` for up to ``steps`` control steps on copies of ``physics`` and
-    ``task``; returns (target reached, closest distance, actions up to the closest)."""
+    ``task``; returns (target reached, closest distance, actions up to the closest). The
+    actions stop before a step that fails: none if the first one does."""
     sim = physics.copy(share_model=True)
     sim_task = copy.copy(task)  # its state is a few scalars, replaced (not mutated) by a step
     actions: list[FloatArray] = []
