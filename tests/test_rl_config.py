@@ -107,3 +107,8 @@ def test_sac_starts_at_the_configured_entropy_temperature() -> None:
     config = apply_overrides(default_config("sac"), ["network.observation_scale=[]"])
     agent = build_agent(config, env.observation_spec, env.action_spec)
     assert float(agent.loss.log_alpha.exp()) == pytest.approx(config.sac.alpha_init)
+
+
+def test_demonstrations_need_a_replay_buffer() -> None:
+    with pytest.raises(ConfigError, match="PPO learns on-policy"):
+        apply_overrides(default_config("ppo"), ["demonstrations.episodes=3"])

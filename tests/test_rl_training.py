@@ -11,10 +11,11 @@ import pytest
 import torch
 from rl_testing import pendulum_env, tiny_config
 
-from sim4endor.rl import checkpoint
+from sim4endor.rl import baselines, checkpoint
 from sim4endor.rl.config import ALGORITHMS
+from sim4endor.rl.envs import sim4endor_env
 from sim4endor.rl.runs import evaluate_run, load_agent
-from sim4endor.rl.trainer import RunDirError, train
+from sim4endor.rl.trainer import DEMO_SEED_OFFSET, RunDirError, train
 
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
@@ -116,3 +117,19 @@ def test_tensorboard_logger_writes_event_files(tmp_path: Path) -> None:
     config = tiny_config("ddpg", "logger.backend=tensorboard", "collector.total_frames=100")
     train(config, tmp_path, make_env=pendulum_env, progress=False)
     assert list((tmp_path / "logs").glob("events.out.tfevents.*"))
+
+
+def test_demonstrations_put_the_experts_episodes_in_the_replay_first(tmp_path: Path) -> None:
+    config = tiny_config("sac", "env.domain=simplified_phantom", "env.task=task_a",
+                         "network.observation_scale=null", "demonstrations.episodes=2")
+    metrics = train(config, tmp_path, progress=False)
+    assert metrics["frames"] == 200  # the expert's steps are not collected frames
+    replay = torch.load(tmp_path / "checkpoint" / "replay.pt", weights_only=True)
+    # eval.max_steps (20) caps each expert episode, as it caps an evaluation episode.
+    assert replay["action"].shape[0] == 2 * 20 + 200
+    env = sim4endor_env(config.env, config.seed + DEMO_SEED_OFFSET)
+    expert = env.rollout(20, baselines.policy(baselines.ScriptedExpert(), env),
+                         break_when_any_done=True)
+    env.close()
+    assert torch.equal(replay["action"][:20], expert["action"])
+    assert torch.equal(replay["next"]["reward"][:20], expert["next", "reward"])

@@ -315,6 +315,26 @@ class EvalConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class DemonstrationConfig:
+    """Scripted-expert episodes in the replay buffer before training (DDPG and SAC).
+
+    The privileged expert (:class:`~sim4endor.tasks.expert.CenterlineExpert`, the reference
+    row of the evaluation tables) drives the training environments for ``episodes``
+    episodes before the first collected frame; its transitions, rewards and failures
+    included, join the replay buffer like any other (off-policy learning needs no more).
+    They cost wall-clock, which the run's training time counts, but no collected frames.
+
+    Attributes:
+        episodes: expert episodes (0: none, the default).
+    """
+
+    episodes: int = 0
+
+    def __post_init__(self) -> None:
+        _check(self, "demonstrations", non_negative=("episodes",))
+
+
+@dataclasses.dataclass(frozen=True)
 class LoggerConfig:
     """TorchRL logger.
 
@@ -355,10 +375,16 @@ class TrainConfig:
     ppo: PPOConfig = PPOConfig()
     eval: EvalConfig = EvalConfig()
     logger: LoggerConfig = LoggerConfig()
+    demonstrations: DemonstrationConfig = DemonstrationConfig()
 
     def __post_init__(self) -> None:
         _check(self, "", positive=("torch_threads",),
                non_negative=("seed", "checkpoint_interval_frames"))
+        if self.demonstrations.episodes and self.algorithm == "ppo":
+            raise ConfigError(
+                "demonstrations.episodes fills the replay buffer of DDPG or SAC; PPO learns "
+                "on-policy and has none. Set it to 0 or choose sac."
+            )
         if self.seed > MAX_SEED:
             raise ConfigError(f"seed must be at most {MAX_SEED}, got {self.seed}.")
         self.observation_scale()  # an entry without a default factor is named now

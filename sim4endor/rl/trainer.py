@@ -5,6 +5,8 @@ store every transition in a replay buffer and take one gradient step per collect
 (unless ``optim.updates_per_batch`` says otherwise), updating the target networks after each;
 PPO computes GAE advantages on the batch and runs ``ppo.epochs`` passes of minibatch steps.
 Periodically the deterministic policy is evaluated and a resumable checkpoint is written.
+With ``demonstrations.episodes``, a new off-policy run first fills its replay buffer with the
+scripted expert's episodes (:func:`add_demonstrations`).
 
 Run folder layout::
 
@@ -28,6 +30,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.collectors import BaseCollector, Collector, MultiSyncCollector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.envs import EnvBase
 from torchrl.record.loggers import Logger
 from tqdm.auto import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
@@ -35,7 +38,7 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 from sim4endor import _json as strict_json
 from sim4endor._atomic import atomic_write_text
 from sim4endor.errors import Sim4EndoRError
-from sim4endor.rl import checkpoint, ray_backend
+from sim4endor.rl import baselines, checkpoint, ray_backend
 from sim4endor.rl.algorithms import Agent, build_agent, learner_device
 from sim4endor.rl.config import TrainConfig, load_config, save_config, to_dict
 from sim4endor.rl.envs import EnvFactory, env_factory
@@ -49,6 +52,8 @@ EVALUATIONS_FILE = "evaluations.jsonl"
 EVALUATION_FILE = "evaluation.json"
 #: Offset between the training and evaluation seeds, so evaluation starts are never trained on.
 EVAL_SEED_OFFSET = 10_000
+#: Seed offset of the demonstration environment, apart from the collectors' (seed + frames).
+DEMO_SEED_OFFSET = 20_000
 
 
 def evaluation_record(progress: checkpoint.Progress, episodes: list[Episode]) -> dict[str, Any]:
@@ -132,6 +137,12 @@ def _train(
     if checkpoint.has_checkpoint(run_dir):
         state = checkpoint.load_checkpoint(run_dir, agent, replay)
         _LOG.info("resuming %s at %d frames", run_dir, state.frames)
+    elif replay is not None and config.demonstrations.episodes:
+        start = time.monotonic()
+        add_demonstrations(make_env(config.seed + DEMO_SEED_OFFSET), agent, replay,
+                           episodes=config.demonstrations.episodes,
+                           max_steps=config.eval.max_steps, progress=progress)
+        state = dataclasses.replace(state, wall_clock_s=time.monotonic() - start)
     _LOG.info("learner on %s", device)
     logger = _logger(config, run_dir)
     loop = _Loop(config, run_dir, agent, replay, logger, eval_env)
@@ -179,6 +190,31 @@ def _replay_buffer(
         storage=LazyTensorStorage(config.replay.size, device=device),
         batch_size=config.optim.batch_size,
     )
+
+
+def add_demonstrations(
+    env: EnvBase, agent: Agent, replay: TensorDictReplayBuffer, *, episodes: int, max_steps: int,
+    progress: bool = True,
+) -> int:
+    """Runs ``episodes`` episodes of the scripted expert in ``env`` (closed after) and adds
+    their transitions to ``replay``; returns how many it added."""
+    actor = baselines.policy(baselines.ScriptedExpert(), env)
+    added = reached = 0
+    bar = tqdm(total=episodes, unit="episodes", desc="demonstrations", disable=not progress)
+    try:
+        with bar, torch.no_grad():
+            for _ in range(episodes):
+                rollout = env.rollout(max_steps, actor, break_when_any_done=True)
+                replay.extend(agent.transitions(rollout.reshape(-1)))
+                added += rollout.numel()
+                reached += bool(rollout["next", "is_success"].any())
+                bar.update()
+                bar.set_postfix(reached=f"{reached}/{bar.n}")
+    finally:
+        env.close()
+    _LOG.info("demonstrations: %d expert episodes (%d reached), %d transitions", episodes,
+              reached, added)
+    return added
 
 
 def _logger(config: TrainConfig, run_dir: Path) -> Logger | None:
