@@ -14,6 +14,7 @@ control task used in tests) gives neutral values: no success, zero force, zero p
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterator
 
 import numpy as np
 import torch
@@ -72,15 +73,41 @@ def rollout_episodes(
     ``progress`` shows a bar counting episodes and successes.
     """
     env.set_seed(seed)
-    episodes: list[Episode] = []
-    bar = tqdm(total=trials, unit="episodes", desc="evaluate", disable=not progress)
-    with bar, torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        return [
+            episode_from_rollout(rollout, keys)
+            for rollout in rollouts(env, policy, trials=trials, max_steps=max_steps, keys=keys,
+                                    progress=progress)
+        ]
+
+
+def rollouts(
+    env: EnvBase,
+    policy: TensorDictModuleBase,
+    *,
+    trials: int,
+    max_steps: int,
+    keys: EpisodeKeys = EpisodeKeys(),
+    progress: bool = False,
+    desc: str = "evaluate",
+) -> Iterator[TensorDictBase]:
+    """Yields ``trials`` episodes of ``policy`` in ``env``, each a rollout with time along dim
+    0, as it goes (``max_steps`` at most each); ``progress`` shows a bar counting episodes and
+    successes. The caller sets the exploration type and gradient mode."""
+    successes = 0
+    with tqdm(total=trials, unit="episodes", desc=desc, disable=not progress) as bar:
         for _ in range(trials):
             rollout = env.rollout(max_steps, policy, break_when_any_done=True)
-            episodes.append(episode_from_rollout(rollout, keys))
+            successes += reached(rollout, keys)
             bar.update()
-            bar.set_postfix(success=f"{sum(e.success for e in episodes)}/{len(episodes)}")
-    return episodes
+            bar.set_postfix(success=f"{successes}/{bar.n}")
+            yield rollout
+
+
+def reached(rollout: TensorDictBase, keys: EpisodeKeys = EpisodeKeys()) -> bool:
+    """Whether one episode's rollout reached the target (False when the env does not say)."""
+    nxt = rollout["next"]
+    return bool(nxt[keys.success].any()) if keys.success in nxt.keys() else False
 
 
 def episode_from_rollout(rollout: TensorDictBase, keys: EpisodeKeys = EpisodeKeys()) -> Episode:
@@ -98,7 +125,6 @@ def episode_from_rollout(rollout: TensorDictBase, keys: EpisodeKeys = EpisodeKey
         tips_np = tips.double().numpy()
     else:
         tips_np = np.zeros((steps + 1, 3))
-    success = bool(nxt[keys.success].any()) if keys.success in present else False
     forces = nxt[keys.wall_force].reshape(-1).numpy() if keys.wall_force in present else np.zeros(0)
     tip_forces = (nxt[keys.tip_force].reshape(-1).numpy() if keys.tip_force in present
                   else np.zeros(0))
@@ -109,7 +135,7 @@ def episode_from_rollout(rollout: TensorDictBase, keys: EpisodeKeys = EpisodeKey
         shortest = float(nxt[keys.distance][0]) + first_move
     return Episode(
         tip_positions=tips_np,
-        success=success,
+        success=reached(rollout, keys),
         duration_s=steps * keys.control_timestep_s,
         wall_forces=forces,
         shortest_path_m=shortest,

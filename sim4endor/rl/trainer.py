@@ -42,7 +42,13 @@ from sim4endor.rl import baselines, checkpoint, ray_backend
 from sim4endor.rl.algorithms import Agent, build_agent, learner_device
 from sim4endor.rl.config import TrainConfig, load_config, save_config, to_dict
 from sim4endor.rl.envs import EnvFactory, env_factory
-from sim4endor.rl.evaluation import EpisodeKeys, rollout_episodes, success_fraction
+from sim4endor.rl.evaluation import (
+    EpisodeKeys,
+    reached,
+    rollout_episodes,
+    rollouts,
+    success_fraction,
+)
 from sim4endor.rl.metrics import Episode, describe, summarize
 
 _LOG = logging.getLogger(__name__)
@@ -199,21 +205,18 @@ def add_demonstrations(
     """Runs ``episodes`` episodes of the scripted expert in ``env`` (closed after) and adds
     their transitions to ``replay``; returns how many it added."""
     actor = baselines.policy(baselines.ScriptedExpert(), env)
-    added = reached = 0
-    bar = tqdm(total=episodes, unit="episodes", desc="demonstrations", disable=not progress)
+    added = successes = 0
     try:
-        with bar, torch.no_grad():
-            for _ in range(episodes):
-                rollout = env.rollout(max_steps, actor, break_when_any_done=True)
+        with torch.no_grad():
+            for rollout in rollouts(env, actor, trials=episodes, max_steps=max_steps,
+                                    progress=progress, desc="demonstrations"):
                 replay.extend(agent.transitions(rollout.reshape(-1)))
                 added += rollout.numel()
-                reached += bool(rollout["next", "is_success"].any())
-                bar.update()
-                bar.set_postfix(reached=f"{reached}/{bar.n}")
+                successes += reached(rollout)
     finally:
         env.close()
     _LOG.info("demonstrations: %d expert episodes (%d reached), %d transitions", episodes,
-              reached, added)
+              successes, added)
     return added
 
 
