@@ -32,7 +32,7 @@ def test_each_algorithm_trains_end_to_end(
     evaluations = (tmp_path / "evaluations.jsonl").read_text().splitlines()
     assert [json.loads(line)["frames"] for line in evaluations] == [100, 200]
     # Pendulum has no target: every evaluation episode runs to the step limit.
-    assert [r.getMessage() for r in caplog.records if "evaluation" in r.getMessage()] == [
+    assert [r.getMessage() for r in caplog.records if "evaluation at" in r.getMessage()] == [
         f"{tmp_path.name}: evaluation at {frames}/200 frames: 0/2 successes (timeout 2)"
         for frames in (100, 200)
     ]
@@ -87,6 +87,32 @@ def test_resume_continues_from_the_checkpoint(tmp_path: Path) -> None:
     assert resumed.wall_clock_s > first.wall_clock_s
     replay = torch.load(tmp_path / "checkpoint" / "replay.pt", weights_only=True)
     assert replay["observation"].shape[0] == 300  # the resumed buffer kept the first 200
+
+
+def _best_line(run_dir: Path) -> dict[str, object]:
+    """The periodic evaluation ``best/`` should hold: the first of the highest-ranked."""
+    lines = [json.loads(line) for line in (run_dir / "evaluations.jsonl").read_text().splitlines()]
+    return max(lines, key=lambda m: (m["success_rate"], m["spl"], m["mean_return"]))
+
+
+def test_best_keeps_the_weights_of_the_best_evaluation(tmp_path: Path) -> None:
+    train(tiny_config("sac"), tmp_path, make_env=pendulum_env, progress=False)
+    best = tmp_path / "best"
+    expected = _best_line(tmp_path)
+    assert json.loads((best / "evaluation.json").read_text()) == expected
+    assert checkpoint.load_progress(best).frames == expected["frames"]
+    assert not (best / "checkpoint" / "replay.pt").exists()
+    # best/ is a run folder: evaluating it replays the same episodes with the same return.
+    again = evaluate_run(best, trials=2, make_env=pendulum_env, record=False)
+    assert again["mean_return"] == pytest.approx(expected["mean_return"])
+
+
+def test_a_resumed_run_compares_with_its_earlier_best(tmp_path: Path) -> None:
+    train(tiny_config("ddpg"), tmp_path, make_env=pendulum_env, progress=False)
+    train(tiny_config("ddpg", "collector.total_frames=400"), tmp_path, make_env=pendulum_env,
+          progress=False)
+    expected = _best_line(tmp_path)
+    assert json.loads((tmp_path / "best" / "evaluation.json").read_text()) == expected
 
 
 def test_a_different_config_in_the_run_folder_is_refused(tmp_path: Path) -> None:

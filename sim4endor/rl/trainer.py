@@ -15,12 +15,22 @@ Run folder layout::
     RUN_DIR/logs/scalars/...csv   TorchRL CSV logger (train/*, eval/*) vs frames
     RUN_DIR/evaluations.jsonl     one line of metrics per periodic evaluation
     RUN_DIR/evaluation.json       the final evaluation (what `sim4endor table` reads)
+    RUN_DIR/best/                 the weights of the best evaluation so far, itself a run folder
+                                  (config.yaml, checkpoint/ without a replay, evaluation.json)
+
+SAC and DDPG runs can end far below their best periodic evaluation, so ``best/`` keeps the
+policy of the best one (most successes, then SPL, then mean return; the first of equals), to
+evaluate or ship with ``sim4endor evaluate RUN_DIR/best``. Every periodic evaluation runs the
+same episodes (same seed), so the comparison is paired. The evaluation environment is the
+config's evaluation split: choosing weights on it makes it a validation split, so keep it apart
+from the trees a result is reported on.
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
 import logging
 import time
 from pathlib import Path
@@ -36,7 +46,7 @@ from tqdm.auto import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
 from sim4endor import _json as strict_json
-from sim4endor._atomic import atomic_write_text
+from sim4endor._atomic import atomic_directory, atomic_write_text
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl import baselines, checkpoint, ray_backend
 from sim4endor.rl.algorithms import Agent, build_agent, learner_device
@@ -56,6 +66,7 @@ _LOG = logging.getLogger(__name__)
 CONFIG_FILE = "config.yaml"
 EVALUATIONS_FILE = "evaluations.jsonl"
 EVALUATION_FILE = "evaluation.json"
+BEST_DIR = "best"
 #: Offset between the training and evaluation seeds, so evaluation starts are never trained on.
 EVAL_SEED_OFFSET = 10_000
 #: Seed offset of the demonstration environment, apart from the collectors' (seed + frames).
@@ -74,6 +85,11 @@ def evaluation_record(progress: checkpoint.Progress, episodes: list[Episode]) ->
 def write_final_evaluation(run_dir: Path, metrics: dict[str, Any]) -> None:
     """Writes ``run_dir/evaluation.json``, what the tables read."""
     atomic_write_text(Path(run_dir) / EVALUATION_FILE, strict_json.dumps(metrics, indent=2) + "\n")
+
+
+def _rank(metrics: dict[str, Any]) -> tuple[float, float, float]:
+    """How evaluations compare for ``best/``: successes, then SPL, then mean return."""
+    return (metrics["success_rate"], metrics["spl"], metrics["mean_return"])
 
 
 class RunDirError(Sim4EndoRError):
@@ -445,7 +461,21 @@ class _Loop:
         path = self.run_dir / EVALUATIONS_FILE
         previous = path.read_text() if path.is_file() else ""
         atomic_write_text(path, previous + strict_json.dumps(metrics) + "\n")
+        self._keep_if_best(state, metrics)
         return metrics
+
+    def _keep_if_best(self, state: checkpoint.Progress, metrics: dict[str, Any]) -> None:
+        """Replaces ``best/`` with the current weights if ``metrics`` beat its evaluation."""
+        best = self.run_dir / BEST_DIR
+        # Read back from the folder, so a resumed run compares with its earlier best.
+        saved = best / EVALUATION_FILE
+        if saved.is_file() and _rank(json.loads(saved.read_text())) >= _rank(metrics):
+            return
+        with atomic_directory(best) as staging:
+            save_config(self.config, staging / CONFIG_FILE)
+            checkpoint.save_checkpoint(staging, self.agent, state, None)
+            write_final_evaluation(staging, metrics)
+        _LOG.info("%s: the best evaluation so far; its weights are in %s", self.run_dir.name, best)
 
     def final_evaluation(self, state: checkpoint.Progress) -> dict[str, Any]:
         metrics = self.evaluate(state)
