@@ -123,6 +123,7 @@ def _fake_run(run_dir: Path, algorithm: str, seed: int, success_rate: float) -> 
 def test_table_command_finds_runs_below_a_folder(tmp_path: Path, capsys) -> None:
     _fake_run(tmp_path / "runs" / "sac-0", "sac", 0, 0.8)
     _fake_run(tmp_path / "runs" / "sac-1", "sac", 1, 0.9)
+    _fake_run(tmp_path / "runs" / "sac-1" / "best", "sac", 1, 1.0)  # that run's best weights
     (tmp_path / "runs" / "unfinished").mkdir()
     assert main(["table", str(tmp_path), "--out", str(tmp_path / "table.md")]) == 0
     printed = capsys.readouterr().out

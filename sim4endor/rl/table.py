@@ -136,13 +136,18 @@ def read_baselines(path: Path) -> BaselineRows:
 
 
 def find_runs(paths: Iterable[Path]) -> list[Path]:
-    """Run folders among ``paths``, searching inside folders that are not runs themselves."""
+    """Run folders among ``paths``, searching inside folders that are not runs themselves.
+
+    A run's own subfolders are not runs of their own: ``RUN/best`` holds the same run's best
+    weights, which the table must not count as another seed.
+    """
     found: list[Path] = []
     for path in map(Path, paths):
         if (path / CONFIG_FILE).is_file():
             found.append(path)
         else:
-            found.extend(sorted(p.parent for p in path.rglob(CONFIG_FILE)))
+            runs = sorted(p.parent for p in path.rglob(CONFIG_FILE))
+            found.extend(r for r in runs if not any(other in r.parents for other in runs))
     return found
 
 
