@@ -99,7 +99,7 @@ def test_best_keeps_the_weights_of_the_best_evaluation(tmp_path: Path) -> None:
     train(tiny_config("sac"), tmp_path, make_env=pendulum_env, progress=False)
     best = tmp_path / "best"
     expected = _best_line(tmp_path)
-    assert json.loads((best / "evaluation.json").read_text()) == expected
+    assert json.loads((best / "selection.json").read_text()) == expected
     assert checkpoint.load_progress(best).frames == expected["frames"]
     assert not (best / "checkpoint" / "replay.pt").exists()
     # best/ is a run folder: evaluating it replays the same episodes with the same return.
@@ -112,7 +112,7 @@ def test_a_resumed_run_compares_with_its_earlier_best(tmp_path: Path) -> None:
     train(tiny_config("ddpg", "collector.total_frames=400"), tmp_path, make_env=pendulum_env,
           progress=False)
     expected = _best_line(tmp_path)
-    assert json.loads((tmp_path / "best" / "evaluation.json").read_text()) == expected
+    assert json.loads((tmp_path / "best" / "selection.json").read_text()) == expected
 
 
 def test_a_different_config_in_the_run_folder_is_refused(tmp_path: Path) -> None:

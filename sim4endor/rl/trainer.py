@@ -16,7 +16,7 @@ Run folder layout::
     RUN_DIR/evaluations.jsonl     one line of metrics per periodic evaluation
     RUN_DIR/evaluation.json       the final evaluation (what `sim4endor table` reads)
     RUN_DIR/best/                 the weights of the best evaluation so far, itself a run folder
-                                  (config.yaml, checkpoint/ without a replay, evaluation.json)
+                                  (config.yaml, checkpoint/ without a replay, selection.json)
 
 SAC and DDPG runs can end far below their best periodic evaluation, so ``best/`` keeps the
 policy of the best one (most successes, then SPL, then mean return; the first of equals), to
@@ -67,6 +67,8 @@ CONFIG_FILE = "config.yaml"
 EVALUATIONS_FILE = "evaluations.jsonl"
 EVALUATION_FILE = "evaluation.json"
 BEST_DIR = "best"
+#: In ``best/``: the periodic evaluation that chose its weights (what later ones must beat).
+SELECTION_FILE = "selection.json"
 #: Offset between the training and evaluation seeds, so evaluation starts are never trained on.
 EVAL_SEED_OFFSET = 10_000
 #: Seed offset of the demonstration environment, apart from the collectors' (seed + frames).
@@ -467,14 +469,15 @@ class _Loop:
     def _keep_if_best(self, state: checkpoint.Progress, metrics: dict[str, Any]) -> None:
         """Replaces ``best/`` with the current weights if ``metrics`` beat its evaluation."""
         best = self.run_dir / BEST_DIR
-        # Read back from the folder, so a resumed run compares with its earlier best.
-        saved = best / EVALUATION_FILE
+        # Read back from the folder, so a resumed run compares with its earlier best; not its
+        # evaluation.json, which `sim4endor evaluate RUN/best` rewrites with other episodes.
+        saved = best / SELECTION_FILE
         if saved.is_file() and _rank(json.loads(saved.read_text())) >= _rank(metrics):
             return
         with atomic_directory(best) as staging:
             save_config(self.config, staging / CONFIG_FILE)
             checkpoint.save_checkpoint(staging, self.agent, state, None)
-            write_final_evaluation(staging, metrics)
+            atomic_write_text(staging / SELECTION_FILE, strict_json.dumps(metrics, indent=2) + "\n")
         _LOG.info("%s: the best evaluation so far; its weights are in %s", self.run_dir.name, best)
 
     def final_evaluation(self, state: checkpoint.Progress) -> dict[str, Any]:
