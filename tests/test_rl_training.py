@@ -115,6 +115,18 @@ def test_a_resumed_run_compares_with_its_earlier_best(tmp_path: Path) -> None:
     assert json.loads((tmp_path / "best" / "selection.json").read_text()) == expected
 
 
+def test_a_saved_best_without_a_finite_return_ranks_lowest(tmp_path: Path) -> None:
+    # A diverged episode's NaN return is saved as null (sim4endor._json).
+    train(tiny_config("ddpg"), tmp_path, make_env=pendulum_env, progress=False)
+    selection = tmp_path / "best" / "selection.json"
+    saved = json.loads(selection.read_text())
+    selection.write_text(json.dumps({**saved, "mean_return": None}))
+    train(tiny_config("ddpg", "collector.total_frames=300"), tmp_path, make_env=pendulum_env,
+          progress=False)
+    last = json.loads((tmp_path / "evaluations.jsonl").read_text().splitlines()[-1])
+    assert json.loads(selection.read_text()) == last
+
+
 def test_a_different_config_in_the_run_folder_is_refused(tmp_path: Path) -> None:
     train(tiny_config("ddpg"), tmp_path, make_env=pendulum_env, progress=False)
     with pytest.raises(RunDirError, match="different configuration"):

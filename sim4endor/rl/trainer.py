@@ -32,6 +32,7 @@ import contextlib
 import dataclasses
 import json
 import logging
+import math
 import time
 from pathlib import Path
 from typing import Any
@@ -86,12 +87,23 @@ def evaluation_record(progress: checkpoint.Progress, episodes: list[Episode]) ->
 
 def write_final_evaluation(run_dir: Path, metrics: dict[str, Any]) -> None:
     """Writes ``run_dir/evaluation.json``, what the tables read."""
-    atomic_write_text(Path(run_dir) / EVALUATION_FILE, strict_json.dumps(metrics, indent=2) + "\n")
+    _write_metrics(Path(run_dir) / EVALUATION_FILE, metrics)
 
 
-def _rank(metrics: dict[str, Any]) -> tuple[float, float, float]:
-    """How evaluations compare for ``best/``: successes, then SPL, then mean return."""
-    return (metrics["success_rate"], metrics["spl"], metrics["mean_return"])
+def _write_metrics(path: Path, metrics: dict[str, Any]) -> None:
+    atomic_write_text(path, strict_json.dumps(metrics, indent=2) + "\n")
+
+
+def _rank(metrics: dict[str, Any]) -> tuple[float, ...]:
+    """How evaluations compare for ``best/``: successes, then SPL, then mean return.
+
+    A value that is not a finite number ranks lowest: a diverged episode's NaN return, which
+    the saved file holds as ``null`` (sim4endor._json), must neither win nor fail the
+    comparison.
+    """
+    keys = ("success_rate", "spl", "mean_return")
+    return tuple(float(v) if isinstance(v, int | float) and math.isfinite(v) else -math.inf
+                 for v in map(metrics.get, keys))
 
 
 class RunDirError(Sim4EndoRError):
@@ -477,7 +489,7 @@ class _Loop:
         with atomic_directory(best) as staging:
             save_config(self.config, staging / CONFIG_FILE)
             checkpoint.save_checkpoint(staging, self.agent, state, None)
-            atomic_write_text(staging / SELECTION_FILE, strict_json.dumps(metrics, indent=2) + "\n")
+            _write_metrics(staging / SELECTION_FILE, metrics)
         _LOG.info("%s: the best evaluation so far; its weights are in %s", self.run_dir.name, best)
 
     def final_evaluation(self, state: checkpoint.Progress) -> dict[str, Any]:
