@@ -8,9 +8,11 @@ at bifurcation 1), and no amount of training would show it as anything but a low
 from __future__ import annotations
 
 import collections
+import math
 
 import numpy as np
 import pytest
+from dm_control.rl import control
 
 from sim4endor import suite
 from sim4endor.tasks.expert import (
@@ -18,6 +20,7 @@ from sim4endor.tasks.expert import (
     ExpertConfig,
     ProbeConfig,
     ProbingExpert,
+    PullBackEntry,
     lookahead,
     run_expert,
 )
@@ -123,8 +126,7 @@ def test_a_stuck_probing_expert_follows_the_best_aim_of_its_probe() -> None:
     env.reset()
     # stall_steps=0: stuck from the first step, so the first call probes.
     expert = ProbingExpert(probe=ProbeConfig(roll_offsets_deg=(0.0, 90.0), horizon=25,
-                                             stall_steps=0,
-                                             max_probes=1))
+                                             stall_steps=0, max_probes=1, pull_back=False))
     first = expert(env.physics, env.task)
     assert expert._probes == 1
     substeps = env.task.config.action.physics_steps(env.physics.timestep())
@@ -183,3 +185,47 @@ def test_an_aim_offset_rolls_the_tip_away_from_the_path_turn() -> None:
             compared += 1
         env.step(action)
     assert compared >= 3
+
+
+def _side_branch_env() -> control.Environment:
+    """Tuning tree 300's first diagonal (a sideways branch), with the 2 mm, 75 degree tip the
+    reachability check uses; the probing expert without the pull-back entry misses it."""
+    wire = {"preset": "workhorse", "tip": {"length": 2e-3, "angle": math.radians(75.0)}}
+    return suite.load("coronary", "navigate", {"pool_seed": 300, "pool_size": 1, "wire": wire,
+                                               "random": 300, "target": "D1"})
+
+
+def test_the_pull_back_entry_passes_the_ostium_turns_the_tip_and_draws_the_wire_back() -> None:
+    env = _side_branch_env()
+    env.reset()
+    entry = PullBackEntry(ExpertConfig())
+    distance = env.task.manifold_distance()
+    phases: list[str] = []
+    for _ in range(200):
+        before = entry.phase
+        action = entry(env.physics, env.task)
+        d = distance(env.physics.tip_position())
+        if entry.phase != before:
+            junction = float(distance.node_distances[entry.junction])
+            if entry.phase == "turn":  # past the branch, off the path, by the overshoot
+                assert d - junction >= entry.overshoot
+            if before == "draw":  # dropped into the branch, or slid back above it
+                assert d < junction or d > junction + entry.give_up
+        if entry.phase == "turn":
+            assert action[0] == 0.0
+        if entry.phase == "draw":
+            assert action[0] == entry.pull
+        if not phases or phases[-1] != entry.phase:
+            phases.append(entry.phase)
+        if entry.phase == "push":
+            break
+        env.step(action)
+    assert phases == ["advance", "turn", "draw", "push"]
+
+
+@pytest.mark.slow
+def test_the_pull_back_entry_brings_the_probing_expert_into_a_sideways_branch() -> None:
+    """About 45 s: one episode that times out and one that reaches the target."""
+    without = run_expert(_side_branch_env(), ProbingExpert(probe=ProbeConfig(pull_back=False)))
+    assert not without["is_success"]
+    assert run_expert(_side_branch_env(), ProbingExpert())["is_success"]

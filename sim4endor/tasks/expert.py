@@ -12,6 +12,9 @@ graph), so it is not an RL baseline on the paper's observation; it is
 
 :class:`ProbingExpert` adds lookahead for the reachability check: where the expert is stuck it
 simulates several aims on a copy of the simulation and follows the one that gets furthest.
+One of them, :class:`PullBackEntry`, is the interventionist's way into an angulated side
+branch: push past its ostium, turn the tip towards it, and draw the wire back until the tip
+drops in.
 
 Example:
     >>> from sim4endor import suite
@@ -138,16 +141,12 @@ class CenterlineExpert:
         self._best = min(self._best, d)
 
         force = physics.tip_contact_force()
-        heading = _unit(points[-1] - points[-2])
-        body = self._body_axis(points, physics.tip_start_index())
         path = _unit(self._path_ahead(distance, self._adjacency(anatomy), proj))
-        bend = heading - (heading @ body) * body
-        turn = path - (path @ body) * body
+        body, bend, turn = self._across_body(physics, points, path)
         aligned = True
         rotate = 0.0
         if np.linalg.norm(turn) >= cfg.straight and np.linalg.norm(bend) > 1e-9:
-            # Roll angle from the tip's bend to the path's turn, about the body axis.
-            phi = math.atan2(float(body @ np.cross(bend, turn)), float(bend @ turn))
+            phi = self._roll_angle(body, bend, turn)
             if cfg.roll_offset_deg:
                 phi = _wrap(phi - math.radians(cfg.roll_offset_deg))
             rotate = float(np.clip(phi / max_rotation_step, -1.0, 1.0))
@@ -162,6 +161,24 @@ class CenterlineExpert:
         else:
             insert = cfg.push
         return np.array([insert, rotate])
+
+    def roll_error(self, physics: GuidewirePhysics, points: FloatArray,
+                   toward: FloatArray) -> float:
+        """Roll angle (rad, in [-pi, pi]) that would turn the tip's bend to point at
+        ``toward`` (a direction), about the wire's body axis."""
+        return self._roll_angle(*self._across_body(physics, points, toward))
+
+    def _across_body(self, physics: GuidewirePhysics, points: FloatArray,
+                     toward: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The body axis, and the tip's heading and ``toward`` across it."""
+        heading = _unit(points[-1] - points[-2])
+        body = self._body_axis(points, physics.tip_start_index())
+        return body, heading - (heading @ body) * body, toward - (toward @ body) * body
+
+    @staticmethod
+    def _roll_angle(body: FloatArray, bend: FloatArray, turn: FloatArray) -> float:
+        """Angle from ``bend`` to ``turn`` about ``body`` (rad)."""
+        return math.atan2(float(body @ np.cross(bend, turn)), float(bend @ turn))
 
     def _adjacency(self, anatomy: Anatomy) -> list[list[int]]:
         key = anatomy.key
@@ -212,6 +229,10 @@ class ProbeConfig:
             simulated control steps.
         min_gain: A plan is followed only if it brings the tip this much (m) closer to the
             target than the episode's closest approach so far, or reaches it.
+        pull_back: Also try :class:`PullBackEntry` at each probe, for ``pull_back_horizon``
+            control steps (it needs more than ``horizon``: past the ostium, turn, draw back,
+            push on).
+        pull_back_horizon: Control steps the pull-back entry is simulated ahead.
         screen: Simulate each action that is not a plan's one control step ahead on a copy,
             and replace one that would end the episode with a failure (a tip-force spike as
             the tip snaps off a ledge, an instability) by the first safe one of: hold the
@@ -225,6 +246,8 @@ class ProbeConfig:
     stall_steps: int = 60
     max_probes: int = 12
     min_gain: float = 0.001
+    pull_back: bool = True
+    pull_back_horizon: int = 90
     screen: bool = True
 
 
@@ -296,16 +319,113 @@ class ProbingExpert(CenterlineExpert):
         self._probes += 1
         self._since = 0
         substeps = task.config.action.physics_steps(physics.timestep())
-        best: tuple[bool, float, list[FloatArray]] = (False, math.inf, [])
+        aims: list[tuple[Policy, int]] = []
         for offset in self.probe.roll_offsets_deg:
-            aim = CenterlineExpert(dataclasses.replace(self.config, roll_offset_deg=offset))
-            aim._neighbours = self._neighbours  # the anatomy's graph, read only
-            reached, closest, actions = lookahead(physics, task, aim, substeps,
-                                                   self.probe.horizon)
+            offset_aim = CenterlineExpert(dataclasses.replace(self.config,
+                                                              roll_offset_deg=offset))
+            offset_aim._neighbours = self._neighbours  # the anatomy's graph, read only
+            aims.append((offset_aim, self.probe.horizon))
+        if self.probe.pull_back:
+            entry = PullBackEntry(self.config)
+            entry.plain._neighbours = self._neighbours
+            aims.append((entry, self.probe.pull_back_horizon))
+        best: tuple[bool, float, list[FloatArray]] = (False, math.inf, [])
+        for aim, horizon in aims:
+            reached, closest, actions = lookahead(physics, task, aim, substeps, horizon)
             if (reached, -closest) > (best[0], -best[1]):
                 best = (reached, closest, actions)
         reached, closest, actions = best
         return actions if reached or closest < self._closest - self.probe.min_gain else []
+
+
+class PullBackEntry:
+    """The pull-back entry into a side branch, as one plan of :class:`ProbingExpert`.
+
+    An interventionist who cannot push the tip into an angulated side branch advances past its
+    ostium, turns the bent tip towards the branch's side and slowly draws the wire back: the
+    tip slides back along the wall and drops into the ostium, and the wire is pushed on. This
+    policy does the same, on the branch where the path to the target leaves the vessel the tip
+    is in (the *junction*, the last node of that path the tip passed):
+
+    1. ``advance``: the plain expert's steering, without its retreat from a wrong branch, until
+       the tip is ``overshoot`` past the junction off the path;
+    2. ``turn``: roll, without insertion, until the tip's bend points within the expert's
+       tolerance of the branch (a point ``into`` along the path past the junction);
+    3. ``draw``: retract at ``pull`` while keeping that roll, until the tip is on the path
+       past the junction (it dropped in) or ``give_up`` above it (it slid past);
+    4. ``push``: the plain expert from there on.
+
+    A fresh instance is made for each probe; its state is the phase and the junction.
+
+    Args:
+        config: The plain expert's gains; its ``tolerance_deg`` ends the turn.
+        overshoot: How far (m, along the centerline) past the junction the tip goes first.
+        into: The tip is turned towards the path's point this far (m) past the junction.
+        pull: Insertion action while drawing back (negative: 0.2 of the largest step).
+        give_up: The draw ends once the tip is this far (m) above the junction.
+    """
+
+    def __init__(self, config: ExpertConfig, overshoot: float = 0.003, into: float = 0.003,
+                 pull: float = -0.2, give_up: float = 0.005) -> None:
+        self.plain = CenterlineExpert(config)
+        self.overshoot, self.into, self.pull, self.give_up = overshoot, into, pull, give_up
+        self.phase = "advance"
+        self.junction = -1
+
+    def __call__(self, physics: GuidewirePhysics, task: NavigationTask) -> FloatArray:
+        """Returns the next action of the phase the wire is in."""
+        if self.phase == "push":
+            return self.plain(physics, task)
+        distance = task.manifold_distance()
+        graph, dist = distance.graph, distance.node_distances
+        neighbours = self.plain._adjacency(task.anatomy)
+        on_path = _path_nodes(task, neighbours)
+        points = physics.wire_points()
+        proj = distance.project(points[-1])
+        d = distance.at(proj)
+        i, j = (int(n) for n in graph.edges[proj.edge])
+        tip_on_path = i in on_path and j in on_path
+        if self.phase == "advance":
+            if not tip_on_path:
+                node = i if dist[i] < dist[j] else j
+                while node not in on_path:
+                    node = min(neighbours[node], key=lambda n: dist[n])
+                if d - dist[node] >= self.overshoot:
+                    self.junction, self.phase = node, "turn"
+            if self.phase == "advance":
+                self.plain.reset()  # no retreat: going past the branch is the point
+                return self.plain(physics, task)
+        junction = dist[self.junction]
+        if tip_on_path and (d < junction or d > junction + self.give_up):
+            self.phase = "push"
+            self.plain.reset()
+            return self.plain(physics, task)
+        node, travelled = self.junction, 0.0
+        while travelled < self.into and dist[node] > 0:
+            nxt = min(neighbours[node], key=lambda n: dist[n])
+            travelled += float(np.linalg.norm(graph.nodes[nxt] - graph.nodes[node]))
+            node = nxt
+        phi = self.plain.roll_error(physics, points, graph.nodes[node] - points[-1])
+        rotate = float(np.clip(phi / task.config.action.max_rotation_step, -1.0, 1.0))
+        if self.phase == "turn":
+            if abs(math.degrees(phi)) >= self.plain.config.tolerance_deg:
+                return np.array([0.0, rotate])
+            self.phase = "draw"
+        return np.array([self.pull, rotate])
+
+
+def _path_nodes(task: NavigationTask, neighbours: list[list[int]]) -> set[int]:
+    """The centerline nodes on the path from the inlet to the task's target."""
+    from sim4endor.tasks.navigation import INLET_LABEL  # navigation imports this module
+
+    distance = task.manifold_distance()
+    dist = distance.node_distances
+    node = int(distance.graph.labels[INLET_LABEL])
+    nodes = {node}
+    while dist[node] > 0:
+        node = min(neighbours[node], key=lambda n: dist[n])
+        nodes.add(node)
+    return nodes
 
 
 def lookahead(physics: GuidewirePhysics, task: NavigationTask, expert: Policy,
