@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import threading
 from pathlib import Path
 
@@ -234,16 +236,19 @@ def test_a_tip_shaped_wider_than_the_catheter_starts_straight_and_takes_its_shap
     assert env.task.step_info()["failure"] == ""
 
 
-def test_the_coronary_scene_keeps_the_workhorse_tip_and_narrows_a_wider_one() -> None:
+def test_the_coronary_scene_keeps_tips_that_span_the_guide_bore_and_narrows_wider_ones() -> None:
     scene = coronary.scene_for(None)
     workhorse = wires.preset("workhorse")
     assert scene.wire.core_profile == workhorse.core_profile
     assert scene.wire.tip_angle == workhorse.tip_angle  # 2 mm, 45 degrees: as shaped
     assert scene.driver.max_insertion == coronary.MAX_INSERTION
-    room = coronary.TIP_FILL * (CoronaryArteriesConfig().min_diameter / 2 - workhorse.radius)
-    paper = coronary.scene_for(SceneConfig(wire=wires.preset("paper"))).wire
-    assert paper.tip_angle < wires.preset("paper").tip_angle  # 5 mm, 35 degrees: 1.48 mm wide
-    assert paper.tip_lateral_offset <= room + 1e-9
+    room = coronary.TIP_FILL * (CoronaryArteriesConfig().catheter_radius - workhorse.radius)
+    paper = wires.preset("paper")  # 5 mm, 35 degrees: 1.48 mm wide, within the 7F bore
+    assert coronary.scene_for(SceneConfig(wire=paper)).wire.tip_angle == paper.tip_angle
+    wide = dataclasses.replace(workhorse, tip_length=3.5e-3, tip_angle=math.radians(75.0))
+    narrowed = coronary.scene_for(SceneConfig(wire=wide)).wire
+    assert narrowed.tip_angle < wide.tip_angle
+    assert room - 1e-5 < narrowed.tip_lateral_offset <= room + 1e-9
 
 
 def test_a_target_the_tree_lacks_is_refused(tmp_path: Path) -> None:

@@ -23,7 +23,7 @@ Usage:
     python experiments/benchmarks/expert_reachability.py [--episodes 8] [--json]
     python experiments/benchmarks/expert_reachability.py --domain coronary --trees 20
     python experiments/benchmarks/expert_reachability.py --domain coronary --expert probing \
-        --tip 2 75 --workers 2
+        --tip 3 75 --workers 2
 """
 
 from __future__ import annotations

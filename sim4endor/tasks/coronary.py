@@ -9,8 +9,8 @@ it is generated and built the first time an episode draws it, cached on disk (na
 and content hash) and compiled once.
 
 The wire defaults to the catalogue's ``workhorse`` (PCI is done with 0.014 in workhorse wires
-of about 1 gf); a pre-bent tip wider than the smallest lumen the generator draws is narrowed
-once, for every tree alike. Each tree's driver travel and wire length are fitted to its own
+of about 1 gf); a pre-bent tip wider than the guide catheter's bore, where the wire starts, is
+narrowed once, for every tree alike. Each tree's driver travel and wire length are fitted to its own
 deepest target (+10 mm), because the physics cost grows about with the square of the
 segment count: the deepest targets of trees 0-7 lie 79-137 mm in (mean 119 mm), so most
 trees compile with 6-16 fewer wire segments than a wire for the deepest target of any tree
@@ -35,12 +35,16 @@ from sim4endor.tasks.config import TaskConfigError, TerminationConfig
 DEFAULT_POOL_SIZE = 8
 #: The wire when ``task_kwargs`` does not say.
 DEFAULT_WIRE = "workhorse"
-#: How wide the pre-bent tip may be, in (smallest lumen radius − wire radius): 2 lets the
-#: tip reach across the smallest lumen (shaft on one wall, tip end at the other), as a
-#: cardiologist shapes a tip to the vessel's calibre. The phantoms' 0.85 (made for the paper
-#: wire's stiff 118 gf tip) cut the workhorse's 2 mm/45° tip to 28°, 0.49 mm off the shaft's
-#: axis in a 4.5 mm left main, where the tip then rarely caught the branch the path takes:
-#: 46 of 76 tuning targets (trees 0-19) reached with 28°, 54 with the preset's 45°.
+#: How wide the pre-bent tip may be, in (guide catheter bore radius − wire radius): 2 lets the
+#: tip reach across the bore it starts in (shaft on one wall, tip end at the other), 1.70 mm
+#: for the 7F guide and a 0.014 in wire, as a cardiologist shapes a tip to the proximal
+#: vessel's calibre; a 1 gf tip bends where a distal lumen is narrower. The phantoms' 0.85 (made
+#: for the paper wire's stiff 118 gf tip) cut the workhorse's 2 mm/45° tip to 28°, 0.49 mm off
+#: the shaft's axis in a 4.5 mm left main, where the tip then rarely caught the branch the path
+#: takes: 46 of 76 tuning targets (trees 0-19) reached with 28°, 54 with the preset's 45°.
+#: Until 2026-11-26 the room was that of the smallest lumen drawn (1.5 mm), which capped every
+#: tip at 1.14 mm: a 3 mm tip at 75° became 3 mm at 46°. Let through, it took the probing
+#: expert from 61 to 67 of 79 tuning targets and from 69 to 71 held out (docs/tasks/coronary.md).
 TIP_FILL = 2.0
 #: Episode limits of the domain. 40 s, not the phantoms' 20 s: the deepest targets lie 152 mm
 #: in, 5 s at the driver's top speed, and each of up to four bifurcations on the way may take a
@@ -74,14 +78,14 @@ def side_of(seed: int, side: Sides) -> Literal["left", "right"]:
 
 def scene_for(base: SceneConfig | None) -> SceneConfig:
     """The scene every tree of a pool is compiled with: travel to the deepest target, the
-    wire long enough for it, and a tip wider than the generator's smallest lumen allows
+    wire long enough for it, and a tip wider than the guide catheter's bore allows
     (:data:`TIP_FILL`) narrowed to it; the catalogue's coronary tips are kept as shaped."""
     from sim4endor.vessels.generators.coronary_arteries import CoronaryArteriesConfig
 
     scene = with_travel(base or SceneConfig(wire=wires.preset(DEFAULT_WIRE)), MAX_INSERTION)
-    smallest = CoronaryArteriesConfig().min_diameter / 2
+    bore = CoronaryArteriesConfig().catheter_radius
     return dataclasses.replace(
-        scene, wire=fit_tip(scene.wire, smallest, TIP_FILL, where="a coronary tree")
+        scene, wire=fit_tip(scene.wire, bore, TIP_FILL, where="a coronary tree's guide catheter")
     )
 
 
