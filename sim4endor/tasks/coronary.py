@@ -10,9 +10,9 @@ and content hash) and compiled once.
 
 The wire defaults to the catalogue's ``workhorse`` (PCI is done with 0.014 in workhorse wires
 of about 1 gf); a pre-bent tip wider than the guide catheter's bore, where the wire starts, is
-narrowed once, for every tree alike. Each tree's driver travel and wire length are fitted to its own
-deepest target (+10 mm), because the physics cost grows about with the square of the
-segment count: the deepest targets of trees 0-7 lie 79-137 mm in (mean 119 mm), so most
+narrowed once, for every tree alike. Each tree's driver travel and wire length are fitted
+to its own deepest target (+10 mm), because the physics cost grows about with the square of
+the segment count: the deepest targets of trees 0-7 lie 79-137 mm in (mean 119 mm), so most
 trees compile with 6-16 fewer wire segments than a wire for the deepest target of any tree
 (:data:`MAX_INSERTION`) would need. Only a pool whose observation includes ``wire_shape``
 needs one wire length for all trees (``same_wire=True``), so that the entry has one size.

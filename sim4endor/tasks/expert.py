@@ -28,8 +28,9 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import itertools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -205,14 +206,8 @@ class CenterlineExpert:
         i, j = graph.edges[proj.edge]
         node = int(i if dist[i] < dist[j] else j)
         travelled = float(np.linalg.norm(graph.nodes[node] - proj.point))
-        while travelled < self.config.lookahead:
-            closer = [n for n in neighbours[node] if dist[n] < dist[node]]
-            if not closer:
-                break
-            nxt = min(closer, key=lambda n: dist[n])
-            travelled += float(np.linalg.norm(graph.nodes[nxt] - graph.nodes[node]))
-            node = nxt
-        return graph.nodes[node] - proj.point
+        ahead = _along_path(distance, neighbours, node, self.config.lookahead, travelled)
+        return graph.nodes[ahead] - proj.point
 
 
 @dataclass(frozen=True)
@@ -371,6 +366,7 @@ class PullBackEntry:
         self.overshoot, self.into, self.pull, self.give_up = overshoot, into, pull, give_up
         self.phase = "advance"
         self.junction = -1
+        self._on_path: set[int] | None = None  # the path's nodes, found on the first call
 
     def __call__(self, physics: GuidewirePhysics, task: NavigationTask) -> FloatArray:
         """Returns the next action of the phase the wire is in."""
@@ -379,7 +375,9 @@ class PullBackEntry:
         distance = task.manifold_distance()
         graph, dist = distance.graph, distance.node_distances
         neighbours = self.plain._adjacency(task.anatomy)
-        on_path = _path_nodes(task, neighbours)
+        if self._on_path is None:
+            self._on_path = _path_nodes(distance, neighbours)
+        on_path = self._on_path
         points = physics.wire_points()
         proj = distance.project(points[-1])
         d = distance.at(proj)
@@ -387,9 +385,8 @@ class PullBackEntry:
         tip_on_path = i in on_path and j in on_path
         if self.phase == "advance":
             if not tip_on_path:
-                node = i if dist[i] < dist[j] else j
-                while node not in on_path:
-                    node = min(neighbours[node], key=lambda n: dist[n])
+                start = i if dist[i] < dist[j] else j
+                node = next(n for n in _to_target(dist, neighbours, start) if n in on_path)
                 if d - dist[node] >= self.overshoot:
                     self.junction, self.phase = node, "turn"
             if self.phase == "advance":
@@ -400,12 +397,8 @@ class PullBackEntry:
             self.phase = "push"
             self.plain.reset()
             return self.plain(physics, task)
-        node, travelled = self.junction, 0.0
-        while travelled < self.into and dist[node] > 0:
-            nxt = min(neighbours[node], key=lambda n: dist[n])
-            travelled += float(np.linalg.norm(graph.nodes[nxt] - graph.nodes[node]))
-            node = nxt
-        phi = self.plain.roll_error(physics, points, graph.nodes[node] - points[-1])
+        branch = _along_path(distance, neighbours, self.junction, self.into)
+        phi = self.plain.roll_error(physics, points, graph.nodes[branch] - points[-1])
         rotate = float(np.clip(phi / task.config.action.max_rotation_step, -1.0, 1.0))
         if self.phase == "turn":
             if abs(math.degrees(phi)) >= self.plain.config.tolerance_deg:
@@ -414,18 +407,34 @@ class PullBackEntry:
         return np.array([self.pull, rotate])
 
 
-def _path_nodes(task: NavigationTask, neighbours: list[list[int]]) -> set[int]:
-    """The centerline nodes on the path from the inlet to the task's target."""
+def _to_target(dist: FloatArray, neighbours: list[list[int]], node: int) -> Iterator[int]:
+    """The centerline nodes from ``node`` to the target (``dist`` is each node's distance to
+    it), each step to the neighbour nearest the target."""
+    yield node
+    while closer := [n for n in neighbours[node] if dist[n] < dist[node]]:
+        node = min(closer, key=lambda n: dist[n])
+        yield node
+
+
+def _along_path(distance: rewards.ManifoldDistance, neighbours: list[list[int]], node: int,
+                length: float, travelled: float = 0.0) -> int:
+    """The node ``length`` (m) along the path from ``node`` towards the target (the target if
+    it is nearer), counting ``travelled`` as already covered."""
+    nodes = distance.graph.nodes
+    for nxt in itertools.islice(_to_target(distance.node_distances, neighbours, node), 1, None):
+        if travelled >= length:
+            break
+        travelled += float(np.linalg.norm(nodes[nxt] - nodes[node]))
+        node = nxt
+    return node
+
+
+def _path_nodes(distance: rewards.ManifoldDistance, neighbours: list[list[int]]) -> set[int]:
+    """The centerline nodes on the path from the inlet to the target of ``distance``."""
     from sim4endor.tasks.navigation import INLET_LABEL  # navigation imports this module
 
-    distance = task.manifold_distance()
-    dist = distance.node_distances
-    node = int(distance.graph.labels[INLET_LABEL])
-    nodes = {node}
-    while dist[node] > 0:
-        node = min(neighbours[node], key=lambda n: dist[n])
-        nodes.add(node)
-    return nodes
+    inlet = int(distance.graph.labels[INLET_LABEL])
+    return set(_to_target(distance.node_distances, neighbours, inlet))
 
 
 def lookahead(physics: GuidewirePhysics, task: NavigationTask, expert: Policy,
