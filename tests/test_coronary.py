@@ -13,7 +13,8 @@ import pytest
 
 from sim4endor import suite
 from sim4endor.models import wires
-from sim4endor.models.scene import SceneConfig
+from sim4endor.models.guidewire import GuidewireConfig, segment_lengths
+from sim4endor.models.scene import SceneConfig, SceneError, fit_segments
 from sim4endor.tasks import TaskConfigError, coronary
 from sim4endor.vessels.generators.coronary_arteries import (
     FINET,
@@ -249,6 +250,26 @@ def test_the_coronary_scene_keeps_tips_that_span_the_guide_bore_and_narrows_wide
     narrowed = coronary.scene_for(SceneConfig(wire=wide)).wire
     assert narrowed.tip_angle < wide.tip_angle
     assert room - 1e-5 < narrowed.tip_lateral_offset <= room + 1e-9
+
+
+def test_the_coronary_scene_cuts_the_shaft_segments_to_lie_in_the_tightest_bend() -> None:
+    generator = CoronaryArteriesConfig()
+    lumen = 0.5 * generator.min_diameter
+    bend = lumen / generator.max_curvature_ratio
+    workhorse = wires.preset("workhorse")
+    room = lumen - workhorse.radius
+
+    def sagitta(wire: GuidewireConfig) -> float:
+        return float(segment_lengths(wire).max()) ** 2 / (8 * bend)
+
+    assert sagitta(workhorse) > room  # the catalogue's 5 mm segments cannot lie in it
+    fitted = coronary.scene_for(None).wire
+    assert sagitta(fitted) <= 0.75 * room + 1e-12
+    assert fitted.max_segment_length == pytest.approx(math.sqrt(8 * bend * 0.75 * room))
+    short = dataclasses.replace(workhorse, max_segment_length=1e-3)
+    assert fit_segments(short, bend, lumen) is short  # already short enough: kept
+    with pytest.raises(SceneError, match="not wider than the wire"):
+        fit_segments(workhorse, bend, workhorse.radius)
 
 
 def test_a_target_the_tree_lacks_is_refused(tmp_path: Path) -> None:

@@ -30,17 +30,18 @@ def test_test_lumen_is_an_s_of_two_right_angles() -> None:
     assert np.all(np.linalg.norm(np.diff(path, axis=0), axis=1) <= 0.003 + 1e-9)
 
 
-def test_stiffer_core_turns_the_tip_with_less_whip() -> None:
-    # Measured (90°/s): whip 3.39 workhorse, 1.35 stiff; lag at the end of the turn 10.6° and
-    # 12.7°, so the stiffer core does *not* lag less here (see docs/guidewire.md). Both are
-    # dynamic figures of the model at its default damping and armature.
-    soft = torque.roll_test(wires.preset("workhorse"))
-    stiff = torque.roll_test(wires.preset("stiff"))
-    for result in (soft, stiff):
+def test_the_tip_follows_the_driver_through_two_bends_without_whipping() -> None:
+    # Measured at the catalogue's 2.5 ms step (90 deg/s): whip 1.49 workhorse, 1.47 stiff,
+    # largest jump 6.7 and 6.6 deg per 50 ms against the driver's 4.5; lag at the end of the
+    # turn 10.5 and 12.5 deg. So a stiffer core does *not* turn the tip better in this model,
+    # by either figure (docs/guidewire.md). At 5 ms the workhorse whipped (3.39, then 1.76
+    # with chains; jumps of 15 deg): the step's, not the core's.
+    for name in ("workhorse", "stiff"):
+        result = torque.roll_test(wires.preset(name))
         assert result.healthy and result.tip_in_last_straight
         assert abs(result.residual_deg) < 10.0  # the tip follows once the driver stops
-    assert stiff.whip < 0.85 * soft.whip
-    assert stiff.max_jump_deg < soft.max_jump_deg
+        assert result.whip < 1.6
+        assert result.max_jump_deg < 9.0  # twice the driver's 4.5 deg per 50 ms
 
 
 def test_tip_roll_lags_more_at_a_faster_turn() -> None:

@@ -19,7 +19,7 @@ from sim4endor.models.guidewire import (
     add_guidewire,
     segment_lengths,
 )
-from sim4endor.models.scene import SceneConfig, base_spec, config_for_vessel
+from sim4endor.models.scene import SceneConfig, base_spec, build_model, config_for_vessel
 from sim4endor.tasks import TaskConfigError, random_coronary
 from sim4endor.tasks.anatomy import compile_anatomy
 
@@ -182,3 +182,19 @@ def test_random_coronary_takes_a_wire_and_its_tree_cache_ignores_it(
     assert scene_b.wire == GuidewireConfig() and scene_c.wire == wires.preset("workhorse")
     with pytest.raises(TaskConfigError, match="valid"):
         suite.load("random_coronary", "navigate", {"wire": "noodle", "cache_dir": tmp_path})
+
+
+def test_catalogue_wires_run_at_their_own_step_unless_the_scene_sets_one() -> None:
+    tube = vessels.load("simplified_phantom")
+    workhorse = wires.preset("workhorse")
+    assert workhorse.max_timestep == wires.CATALOGUE_TIMESTEP
+    assert wires.preset("paper").max_timestep is None  # the published model's 5 ms
+    step = {
+        name: build_model(tube, SceneConfig(wire=wires.preset(name))).opt.timestep
+        for name in ("paper", "workhorse")
+    }
+    assert step == {"paper": pytest.approx(0.005), "workhorse": pytest.approx(0.0025)}
+    chosen = build_model(tube, SceneConfig(wire=workhorse, timestep=0.004)).opt.timestep
+    assert chosen == pytest.approx(0.004)  # an explicit scene step wins
+    with pytest.raises(GuidewireConfigError, match="max_timestep"):
+        dataclasses.replace(workhorse, max_timestep=0.0)

@@ -44,9 +44,11 @@ Definitions:
   target. The residual lag after the hold and the largest jump are printed. A preset whose
   tip did not reach the last straight is listed in torque_roll_not_through instead.
 * max_penetration_over_radius (per preset; sim4endor.models.push): the wire driven at full
-  speed into branch A's closed end (driver roll 0, 40 mm of travel past the target) and
-  pushed at the driver's 0.5 N limit for 6 s; the deepest overlap of a wire capsule with a
-  wall hull (MuJoCo's contact distance, every physics step) in wire radii. Target <= 0.25.
+  speed into branch A's closed end (40 mm of travel past the target) and pushed at the
+  driver's 0.5 N limit for 6 s; the deepest overlap of a wire capsule with a wall hull
+  (MuJoCo's contact distance, every physics step) in wire radii, the largest over four
+  driver rolls (0, 90, 180 and 270 degrees: where the buckled wire snaps depends on the
+  roll). Target <= 0.25. penetration_by_roll lists each roll.
 * push_robustness (per driver force limit 0.5 / 2 / 5 N, per preset): the same push, once
   as raw physics and once stopped like the navigation task's push_force failure (driver push
   > TerminationConfig.max_push_force, checked after every control step): max wall force (N,
@@ -156,6 +158,23 @@ def push_robustness(vessel: vessels.Vessel) -> dict[str, dict[str, dict]]:
                                                     stop_push_force=stop))}
             for name in wires.names()
         }
+    return out
+
+
+#: Driver rolls of the dead-end push (deg); roll 0 is push_robustness's 0.5 N raw run.
+PUSH_ROLLS_DEG = (0, 90, 180, 270)
+
+
+def penetration_by_roll(vessel: vessels.Vessel,
+                        pushes: dict[str, dict[str, dict]]) -> dict[str, dict[str, float]]:
+    """Deepest hull overlap (wire radii) of the 0.5 N dead-end push at each driver roll."""
+    out: dict[str, dict[str, float]] = {}
+    for name in wires.names():
+        row = {"0": pushes["0.5"][name]["raw"]["max_penetration_over_radius"]}
+        for roll in PUSH_ROLLS_DEG[1:]:
+            result = push.push_test(vessel, wires.preset(name), 0.5, rotation=math.radians(roll))
+            row[str(roll)] = result.penetration_over_radius
+        out[name] = row
     return out
 
 
@@ -319,6 +338,7 @@ def main() -> None:
     tapered = tapered_cantilever_errors()
     rolls = torque_rolls()
     pushes = push_robustness(vessel)
+    by_roll = penetration_by_roll(vessel, pushes)
     inertia = inertia_independence()
     result = {
         "cantilever_rel_error": max(cantilever["real_mass"], cantilever["mass_scaled"]),
@@ -344,9 +364,8 @@ def main() -> None:
         "torque_roll_not_through": [
             name for name, roll in rolls.items() if not roll.tip_in_last_straight
         ],
-        "max_penetration_over_radius": {
-            name: row["raw"]["max_penetration_over_radius"] for name, row in pushes["0.5"].items()
-        },
+        "max_penetration_over_radius": {name: max(row.values()) for name, row in by_roll.items()},
+        "penetration_by_roll": by_roll,
         "push_robustness": pushes,
         "inertia_independence": inertia,
     }
@@ -393,6 +412,8 @@ def main() -> None:
                       f"{r['left_lumen']}, NaN {r['nan']}, max push {r['max_push_n']:.2f} N, "
                       f"ended {r['ended_at_s']:.2f} s, push_force stop "
                       f"{r['stopped_by_push_force']}", file=log)
+    for name, row in by_roll.items():
+        print(f"penetration at 0.5 N by driver roll (deg: wire radii) {name}: {row}", file=log)
     for name, row in inertia.items():
         print(f"inertia {name}: {row}", file=log)
     print(f"total {time.perf_counter() - started:.0f} s", file=log)

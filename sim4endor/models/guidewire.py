@@ -101,6 +101,10 @@ class GuidewireConfig:
             :func:`add_guidewire`). Counted from the tip, so the pre-bent tip lies in one
             chain; at least ``tip_segments``. The welds between chains go unstable under
             joint damping of a second or more (``damping_time`` ≥ 1 s; 0.2 s is fine).
+        max_timestep: Longest physics time step (s) this wire is simulated at: a scene whose
+            step is longer (``mjcf/options.xml``: 5 ms) and that does not set its own
+            (``SceneConfig.timestep``) runs at this one instead. ``None`` (default): the
+            scene's step. The catalogue's presets set it (:mod:`sim4endor.models.wires`).
         core_profile: Optional tapered core: ``((s, d), ...)`` pairs of distance from the
             distal tip ``s`` (m, strictly increasing, starting at 0) and core diameter ``d``
             (m), linear in between and constant beyond the last pair. ``None`` (default)
@@ -128,6 +132,7 @@ class GuidewireConfig:
     damping_time: float = 0.025
     armature_time: float = 0.015
     chain_bodies: int | None = None
+    max_timestep: float | None = None
     core_profile: tuple[tuple[float, float], ...] | None = None
 
     def __post_init__(self) -> None:
@@ -168,6 +173,12 @@ class GuidewireConfig:
         if self.friction < 0 or self.damping_time < 0 or self.armature_time < 0:
             raise GuidewireConfigError(
                 "GuidewireConfig.friction, damping_time and armature_time must be >= 0."
+            )
+        if self.max_timestep is not None and not (
+            math.isfinite(self.max_timestep) and self.max_timestep > 0
+        ):
+            raise GuidewireConfigError(
+                f"GuidewireConfig.max_timestep must be > 0 or None, got {self.max_timestep}."
             )
         if self.core_profile is not None:
             _check_core_profile(self.core_profile, self.outer_diameter)

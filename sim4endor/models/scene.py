@@ -16,6 +16,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import functools
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,7 +43,8 @@ class SceneConfig:
     Attributes:
         wire: Guidewire parameters.
         driver: Driver and sheath parameters.
-        timestep: Physics time step (s); ``None`` keeps ``mjcf/options.xml`` (5 ms).
+        timestep: Physics time step (s); ``None`` keeps ``mjcf/options.xml`` (5 ms), or the
+            wire's ``max_timestep`` where that is shorter.
     """
 
     wire: GuidewireConfig = field(default_factory=GuidewireConfig)
@@ -111,6 +113,29 @@ def fit_tip(wire: GuidewireConfig, lumen_radius: float, tip_fill: float = 0.85,
         else:
             low = middle
     return dataclasses.replace(wire, tip_angle=low)
+
+
+def fit_segments(wire: GuidewireConfig, bend_radius: float, lumen_radius: float,
+                 fill: float = 0.75) -> GuidewireConfig:
+    """Returns ``wire`` with its shaft segments short enough to lie in a bend of axis radius
+    ``bend_radius`` (m) of a lumen of ``lumen_radius`` (m).
+
+    A straight segment of length l laid in the bend bows off its axis by the sagitta
+    l² / (8 R). Where that exceeds the room the lumen leaves the wire, the segment cannot lie
+    in the lumen at all: the contacts pinch it between the walls and the step blows up. The
+    longest segment is cut until the sagitta is at most ``fill`` × (``lumen_radius`` − wire
+    radius).
+    """
+    room = fill * (lumen_radius - wire.radius)
+    if room <= 0:
+        raise SceneError(
+            f"A lumen of {lumen_radius * 1e3:.2f} mm radius is not wider than the wire "
+            f"({wire.radius * 1e3:.2f} mm radius)."
+        )
+    longest = math.sqrt(8.0 * bend_radius * room)
+    if wire.max_segment_length <= longest:
+        return wire
+    return dataclasses.replace(wire, max_segment_length=longest)
 
 
 def base_spec() -> mujoco.MjSpec:
@@ -183,6 +208,8 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
     spec = base_spec()
     if config.timestep is not None:
         spec.option.timestep = config.timestep
+    elif wire.max_timestep is not None:
+        spec.option.timestep = min(spec.option.timestep, wire.max_timestep)
     if vessel is None:
         inlet, direction = np.zeros(3), np.array([1.0, 0.0, 0.0])
         straight = False

@@ -46,6 +46,13 @@ _MM = 1e-3
 #: faster and keeps every validation target (docs/performance.md, docs/guidewire.md); the
 #: paper preset keeps one chain, bit for bit the published model.
 CHAIN_BODIES = 6
+#: Physics time step of the catalogue's wires (GuidewireConfig.max_timestep), numerical like
+#: CHAIN_BODIES. At 5 ms MuJoCo clamps the contacts' time constant to 10 ms: pushed at the
+#: driver's 0.5 N into the simplified phantom's dead end, the workhorse overlapped the hulls by
+#: up to 1.13 wire radii over four driver rolls, and at 5 N two of the three presets blew up.
+#: At 2.5 ms none overlapped the hulls at any roll and none blew up (docs/guidewire.md). It
+#: costs twice the steps; the paper preset keeps 5 ms, bit for bit the published model.
+CATALOGUE_TIMESTEP = 0.0025
 
 
 class WireCatalogueError(Sim4EndoRError, ValueError):
@@ -132,6 +139,7 @@ def _entry(name: str, raw: Mapping[str, Any], materials: Mapping[str, Any]) -> W
         tip_angle=shape.angle,
         tip_stiffness_factor=1.0,  # the taper makes the tip soft
         chain_bodies=CHAIN_BODIES,
+        max_timestep=CATALOGUE_TIMESTEP,
     )
     return WireEntry(
         name=name, description=raw["description"], config=config,

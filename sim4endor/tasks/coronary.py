@@ -13,7 +13,7 @@ of about 1 gf); a pre-bent tip wider than the guide catheter's bore, where the w
 narrowed once, for every tree alike. Each tree's driver travel and wire length are fitted
 to its own deepest target (+10 mm), because the physics cost grows about with the square of
 the segment count: the deepest targets of trees 0-7 lie 79-137 mm in (mean 119 mm), so most
-trees compile with 6-16 fewer wire segments than a wire for the deepest target of any tree
+trees compile with 5-27 fewer wire segments than a wire for the deepest target of any tree
 (:data:`MAX_INSERTION`) would need. Only a pool whose observation includes ``wire_shape``
 needs one wire length for all trees (``same_wire=True``), so that the entry has one size.
 """
@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Literal
 
 from sim4endor.models import wires
-from sim4endor.models.scene import SceneConfig, fit_tip, with_travel
+from sim4endor.models.scene import SceneConfig, fit_segments, fit_tip, with_travel
 from sim4endor.tasks import anatomy
 from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, compile_anatomy
 from sim4endor.tasks.config import TaskConfigError, TerminationConfig
@@ -78,15 +78,23 @@ def side_of(seed: int, side: Sides) -> Literal["left", "right"]:
 
 def scene_for(base: SceneConfig | None) -> SceneConfig:
     """The scene every tree of a pool is compiled with: travel to the deepest target, the
-    wire long enough for it, and a tip wider than the guide catheter's bore allows
-    (:data:`TIP_FILL`) narrowed to it; the catalogue's coronary tips are kept as shaped."""
+    wire long enough for it, a tip wider than the guide catheter's bore allows
+    (:data:`TIP_FILL`) narrowed to it (the catalogue's coronary tips are kept as shaped), and
+    shaft segments short enough for the tightest bend the generator draws."""
     from sim4endor.vessels.generators.coronary_arteries import CoronaryArteriesConfig
 
     scene = with_travel(base or SceneConfig(wire=wires.preset(DEFAULT_WIRE)), MAX_INSERTION)
-    bore = CoronaryArteriesConfig().catheter_radius
-    return dataclasses.replace(
-        scene, wire=fit_tip(scene.wire, bore, TIP_FILL, where="a coronary tree's guide catheter")
-    )
+    generator = CoronaryArteriesConfig()
+    wire = fit_tip(scene.wire, generator.catheter_radius, TIP_FILL,
+                   where="a coronary tree's guide catheter")
+    # The tightest bend: the narrowest lumen at the largest curvature the generator allows
+    # (0.75 mm at 2.5 radii, 1.9 mm). A 4.85 mm shaft segment would bow 1.6 mm off the axis
+    # there, 2.7 times the room; such pinched segments blew a workhorse with a hydrophilic
+    # coat's friction up in 6 of 79 tuning episodes (a 2.6 mm bend of tree 400's OM1).
+    # Fitted: about 2.5 mm.
+    narrowest = 0.5 * generator.min_diameter
+    wire = fit_segments(wire, narrowest / generator.max_curvature_ratio, narrowest)
+    return dataclasses.replace(scene, wire=wire)
 
 
 def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig,
