@@ -97,12 +97,7 @@ def fit_tip(wire: GuidewireConfig, lumen_radius: float, tip_fill: float = 0.85,
     Raises:
         SceneError: If the lumen is not wider than the wire.
     """
-    room = tip_fill * (lumen_radius - wire.radius)
-    if room <= 0:
-        raise SceneError(
-            f"{where}'s narrowest lumen ({lumen_radius * 1e3:.2f} mm radius) is not "
-            f"wider than the wire ({wire.radius * 1e3:.2f} mm radius)."
-        )
+    room = _room(wire, lumen_radius, tip_fill, where)
     if wire.tip_lateral_offset <= room:
         return wire
     low, high = 0.0, wire.tip_angle  # bisection: the offset grows with the angle
@@ -116,7 +111,7 @@ def fit_tip(wire: GuidewireConfig, lumen_radius: float, tip_fill: float = 0.85,
 
 
 def fit_segments(wire: GuidewireConfig, bend_radius: float, lumen_radius: float,
-                 fill: float = 0.75) -> GuidewireConfig:
+                 fill: float = 0.75, where: str = "the vessel") -> GuidewireConfig:
     """Returns ``wire`` with its shaft segments short enough to lie in a bend of axis radius
     ``bend_radius`` (m) of a lumen of ``lumen_radius`` (m).
 
@@ -125,17 +120,26 @@ def fit_segments(wire: GuidewireConfig, bend_radius: float, lumen_radius: float,
     in the lumen at all: the contacts pinch it between the walls and the step blows up. The
     longest segment is cut until the sagitta is at most ``fill`` × (``lumen_radius`` − wire
     radius).
+
+    Raises:
+        SceneError: If the lumen is not wider than the wire.
     """
-    room = fill * (lumen_radius - wire.radius)
-    if room <= 0:
-        raise SceneError(
-            f"A lumen of {lumen_radius * 1e3:.2f} mm radius is not wider than the wire "
-            f"({wire.radius * 1e3:.2f} mm radius)."
-        )
-    longest = math.sqrt(8.0 * bend_radius * room)
+    longest = math.sqrt(8.0 * bend_radius * _room(wire, lumen_radius, fill, where))
     if wire.max_segment_length <= longest:
         return wire
     return dataclasses.replace(wire, max_segment_length=longest)
+
+
+def _room(wire: GuidewireConfig, lumen_radius: float, fill: float, where: str) -> float:
+    """``fill`` × the room a lumen of ``lumen_radius`` leaves the wire (m): the budget of
+    :func:`fit_tip` and :func:`fit_segments`."""
+    room = fill * (lumen_radius - wire.radius)
+    if room <= 0:
+        raise SceneError(
+            f"{where}'s narrowest lumen ({lumen_radius * 1e3:.2f} mm radius) is not "
+            f"wider than the wire ({wire.radius * 1e3:.2f} mm radius)."
+        )
+    return room
 
 
 def base_spec() -> mujoco.MjSpec:

@@ -93,7 +93,8 @@ def scene_for(base: SceneConfig | None) -> SceneConfig:
     # coat's friction up in 6 of 79 tuning episodes (a 2.6 mm bend of tree 400's OM1).
     # Fitted: about 2.5 mm.
     narrowest = 0.5 * generator.min_diameter
-    wire = fit_segments(wire, narrowest / generator.max_curvature_ratio, narrowest)
+    wire = fit_segments(wire, narrowest / generator.max_curvature_ratio, narrowest,
+                        where="a coronary tree")
     return dataclasses.replace(scene, wire=wire)
 
 
