@@ -198,3 +198,29 @@ def test_catalogue_wires_run_at_their_own_step_unless_the_scene_sets_one() -> No
     assert chosen == pytest.approx(0.004)  # an explicit scene step wins
     with pytest.raises(GuidewireConfigError, match="max_timestep"):
         dataclasses.replace(workhorse, max_timestep=0.0)
+
+
+def test_catalogue_wires_name_their_coat_and_its_friction() -> None:
+    assert wires.coatings() == {"hydrophobic": 0.1, "hydrophilic": 0.03}
+    assert wires.entry("workhorse").coating == "hydrophilic"
+    assert wires.preset("workhorse").friction == wires.coating_friction("hydrophilic")
+    assert wires.preset("stiff").friction == wires.coating_friction("hydrophobic")
+    assert wires.preset("paper").friction == GuidewireConfig().friction  # the published 0.1
+    recoated = wires.resolve({"preset": "workhorse", "coating": "hydrophobic"})
+    assert recoated == dataclasses.replace(wires.preset("workhorse"), friction=0.1)
+    with pytest.raises(wires.WireCatalogueError, match=r"'teflon'.*hydrophilic"):
+        wires.resolve({"preset": "workhorse", "coating": "teflon"})
+    with pytest.raises(wires.WireCatalogueError, match="not both"):
+        wires.resolve({"preset": "workhorse", "coating": "hydrophilic", "friction": 0.2})
+
+
+def test_catalogue_wires_choose_elliptic_friction_cones_and_paper_keeps_the_scene_s() -> None:
+    tube = vessels.load("simplified_phantom")
+    cone = {
+        name: build_model(tube, SceneConfig(wire=wires.preset(name))).opt.cone
+        for name in ("paper", "workhorse")
+    }
+    assert cone == {"paper": mujoco.mjtCone.mjCONE_PYRAMIDAL,
+                    "workhorse": mujoco.mjtCone.mjCONE_ELLIPTIC}
+    with pytest.raises(GuidewireConfigError, match=r"friction_cone.*'conical'"):
+        dataclasses.replace(wires.preset("workhorse"), friction_cone="conical")

@@ -57,7 +57,9 @@ Definitions:
 * inertia_independence (per tapered preset): armature / the real segment's inertia about its
   joint (bending and twist ranges over the joints) beside the mass scaling, and how far the
   tip's position after the S-lumen insertion moves (mm) with armature_time x2 and with 100x
-  less mass scaling (the latter at dt 1 ms for both).
+  less mass scaling (the latter at dt 1 ms for both); and tip_drift_held_1_to_4_s_mm, how
+  far it moves while the driver holds still from 1 s to 4 s after the insertion (a wire at
+  rest moves none).
 * realtime_factor: simulated seconds per second of stepping + policy over all steering
   episodes, timed with this thread's CPU time: on the shared development machine that is the
   wall time one dedicated core would need (the wall-clock figure and the load average are
@@ -181,11 +183,19 @@ def penetration_by_roll(vessel: vessels.Vessel,
 def inertia_independence() -> dict[str, dict[str, float | list[float]]]:
     """Inertia the quasi-static settings add, and the S-lumen insertion's tip shift (mm)."""
 
-    def tip(wire: GuidewireConfig, timestep: float | None) -> np.ndarray:
+    def tips(wire: GuidewireConfig, timestep: float | None, *settles: float) -> list[np.ndarray]:
+        """The tip after the insertion and each further hold of ``settles`` seconds."""
         physics = torque.bent_tube_physics(wire, timestep)
-        validation.drive_to(physics, torque.INSERTION, 0.0, settle=1.0)
-        healthy = physics.is_finite() and not physics.warnings()
-        return physics.tip_position() if healthy else np.full(3, np.inf)
+        validation.drive_to(physics, torque.INSERTION, 0.0)
+        out = []
+        for settle in settles:
+            validation.drive_to(physics, torque.INSERTION, 0.0, settle=settle)
+            healthy = physics.is_finite() and not physics.warnings()
+            out.append(physics.tip_position() if healthy else np.full(3, np.inf))
+        return out
+
+    def tip(wire: GuidewireConfig, timestep: float | None) -> np.ndarray:
+        return tips(wire, timestep, 1.0)[0]
 
     out: dict[str, dict[str, float | list[float]]] = {}
     for name in wires.names():
@@ -193,7 +203,7 @@ def inertia_independence() -> dict[str, dict[str, float | list[float]]]:
         if wire.core_profile is None:
             continue
         factors = validation.inertia_factors(wire)
-        default = tip(wire, None)
+        default, held = tips(wire, None, 1.0, 3.0)
         armature = tip(dataclasses.replace(wire, armature_time=2 * wire.armature_time), None)
         heavy = tip(wire, 0.001)
         light = tip(dataclasses.replace(wire, mass_scale=wire.mass_scale / 100), 0.001)
@@ -203,6 +213,7 @@ def inertia_independence() -> dict[str, dict[str, float | list[float]]]:
             "armature_over_inertia_twist": list(factors.twist),
             "tip_shift_armature_x2_mm": float(np.linalg.norm(armature - default) * 1e3),
             "tip_shift_mass_scale_div100_mm": float(np.linalg.norm(light - heavy) * 1e3),
+            "tip_drift_held_1_to_4_s_mm": float(np.linalg.norm(held - default) * 1e3),
         }
     return out
 

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import types
 from dataclasses import dataclass
 
 import mujoco
@@ -58,6 +59,9 @@ from sim4endor.models import constants as names
 
 _CABLE_PLUGIN = "mujoco.elasticity.cable"
 INCH = 0.0254
+#: MuJoCo's friction cones by the name GuidewireConfig.friction_cone takes.
+FRICTION_CONES = types.MappingProxyType({"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL,
+                                         "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC})
 
 
 class GuidewireConfigError(Sim4EndoRError, ValueError):
@@ -81,7 +85,8 @@ class GuidewireConfig:
             lateral offset, which fits a 2 mm-radius lumen.
         tip_stiffness_factor: Bending/twisting stiffness of the tip relative to the shaft.
         friction: Sliding friction coefficient of wire contacts (the wire's geoms have
-            priority, so this value is used against walls and sheath).
+            priority, so this value is used against walls and sheath). The catalogue's
+            presets take it from their coat (:func:`sim4endor.models.wires.coatings`).
         density: Physical density of the wire (kg/m³); nitinol ~6450.
         mass_scale: Quasi-static mass-scaling factor applied to ``density`` (see module doc).
         tip_segments: Number of (equal) segments along the pre-bent tip.
@@ -105,6 +110,13 @@ class GuidewireConfig:
             step is longer (``mjcf/options.xml``: 5 ms) and that does not set its own
             (``SceneConfig.timestep``) runs at this one instead. ``None`` (default): the
             scene's step. The catalogue's presets set it (:mod:`sim4endor.models.wires`).
+        friction_cone: MuJoCo friction cone of the scene this wire is simulated in:
+            ``"pyramidal"``, ``"elliptic"``, or ``None`` (default) for the scene's own
+            (``mjcf/options.xml``: pyramidal). With pyramidal cones a wire held in a bent
+            lumen never comes to rest (joint speeds of 1-30 rad/s with the driver still,
+            the tip wandering over millimetres at friction 0.03); with elliptic cones it
+            does (docs/guidewire.md, "Friction cones"). The catalogue's presets set
+            ``"elliptic"``; a scene holds one wire, so the wire's choice is the scene's.
         core_profile: Optional tapered core: ``((s, d), ...)`` pairs of distance from the
             distal tip ``s`` (m, strictly increasing, starting at 0) and core diameter ``d``
             (m), linear in between and constant beyond the last pair. ``None`` (default)
@@ -133,6 +145,7 @@ class GuidewireConfig:
     armature_time: float = 0.015
     chain_bodies: int | None = None
     max_timestep: float | None = None
+    friction_cone: str | None = None
     core_profile: tuple[tuple[float, float], ...] | None = None
 
     def __post_init__(self) -> None:
@@ -179,6 +192,11 @@ class GuidewireConfig:
         ):
             raise GuidewireConfigError(
                 f"GuidewireConfig.max_timestep must be > 0 or None, got {self.max_timestep}."
+            )
+        if self.friction_cone not in (None, *FRICTION_CONES):
+            raise GuidewireConfigError(
+                f"GuidewireConfig.friction_cone must be one of {list(FRICTION_CONES)} or None, "
+                f"got {self.friction_cone!r}."
             )
         if self.core_profile is not None:
             _check_core_profile(self.core_profile, self.outer_diameter)

@@ -27,7 +27,12 @@ from sim4endor import assets
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
 from sim4endor.models.driver import DriverConfig, add_driver, add_sheath
-from sim4endor.models.guidewire import GuidewireConfig, add_guidewire, chain_starts
+from sim4endor.models.guidewire import (
+    FRICTION_CONES,
+    GuidewireConfig,
+    add_guidewire,
+    chain_starts,
+)
 from sim4endor.vessels import CENTERLINE_FILE, Vessel
 from sim4endor.vessels.manifest import MANIFEST_FILE
 
@@ -214,6 +219,8 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
         spec.option.timestep = config.timestep
     elif wire.max_timestep is not None:
         spec.option.timestep = min(spec.option.timestep, wire.max_timestep)
+    if wire.friction_cone is not None:
+        spec.option.cone = FRICTION_CONES[wire.friction_cone]
     if vessel is None:
         inlet, direction = np.zeros(3), np.array([1.0, 0.0, 0.0])
         straight = False

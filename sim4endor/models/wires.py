@@ -14,7 +14,9 @@ Example:
 ``paper`` is ``GuidewireConfig()`` unchanged, the default of every task, so the paper's
 results stay reproducible. The others model real wire classes (workhorse ≈ 1 gf,
 intermediate 3 gf, stiff CTO 12.4 gf tip load) with a tapered core whose distal diameter is
-derived from the rated tip load (see ``wires.toml`` and docs/guidewire.md).
+derived from the rated tip load, and a coat whose friction is data too (``[coatings]``:
+the workhorse is hydrophilic, 0.03; the others hydrophobic, 0.1); see ``wires.toml`` and
+docs/guidewire.md.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
-from typing import Any
+from typing import Any, TypeVar
 
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models.guidewire import INCH, GuidewireConfig
@@ -53,6 +55,16 @@ CHAIN_BODIES = 6
 #: At 2.5 ms none overlapped the hulls at any roll and none blew up (docs/guidewire.md). It
 #: costs twice the steps; the paper preset keeps 5 ms, bit for bit the published model.
 CATALOGUE_TIMESTEP = 0.0025
+#: Friction cone of the catalogue's wires (GuidewireConfig.friction_cone), numerical like
+#: CHAIN_BODIES. With MuJoCo's pyramidal cones a wire held still in a bent lumen never came to
+#: rest: its tip wandered over 1-3 mm within 4 s at a hydrophilic coat's friction, and
+#: doubling the joints' armature moved it 0.31 mm. With elliptic cones the tip stays within
+#: 0.004 mm and the armature moves it 0.003 mm (docs/guidewire.md, "Friction cones"). The
+#: paper preset keeps the pyramidal cones, bit for bit the published model.
+CATALOGUE_FRICTION_CONE = "elliptic"
+
+
+_Value = TypeVar("_Value")
 
 
 class WireCatalogueError(Sim4EndoRError, ValueError):
@@ -103,6 +115,8 @@ class WireEntry:
         rating_source: Where the rating comes from (URLs).
         modelled_on: The real wire or class the preset stands for.
         core_material: ``"nitinol"`` or ``"stainless_steel"``.
+        coating: The jacket's coat, a name of :func:`coatings` (its friction is the
+            config's); ``""`` for ``paper``.
     """
 
     name: str
@@ -112,14 +126,43 @@ class WireEntry:
     rating_source: str = ""
     modelled_on: str = ""
     core_material: str = "nitinol"
+    coating: str = ""
+
+
+@functools.cache
+def _data() -> dict[str, Any]:
+    text = resources.files("sim4endor.models").joinpath("wires.toml").read_text("utf-8")
+    return tomllib.loads(text)
 
 
 @functools.cache
 def _catalogue() -> dict[str, WireEntry]:
-    text = resources.files("sim4endor.models").joinpath("wires.toml").read_text("utf-8")
-    data = tomllib.loads(text)
-    materials = data["materials"]
-    return {name: _entry(name, raw, materials) for name, raw in data["presets"].items()}
+    materials = _data()["materials"]
+    return {name: _entry(name, raw, materials) for name, raw in _data()["presets"].items()}
+
+
+def coatings() -> dict[str, float]:
+    """Returns the catalogue's coats and their sliding friction coefficients (``wires.toml``)."""
+    return {name: float(raw["friction"]) for name, raw in _data()["coatings"].items()}
+
+
+def coating_friction(name: str) -> float:
+    """Returns the sliding friction coefficient of coat ``name``.
+
+    Raises:
+        WireCatalogueError: For an unknown coat; the message lists the valid ones.
+    """
+    return _named(coatings(), name, "coating")
+
+
+def _named(table: Mapping[str, _Value], name: str, what: str) -> _Value:
+    """``table[name]``, or an error that names ``name`` and lists the valid names."""
+    try:
+        return table[name]
+    except (KeyError, TypeError):
+        raise WireCatalogueError(
+            f"Unknown wire {what} {name!r}; valid: {list(table)}."
+        ) from None
 
 
 def _entry(name: str, raw: Mapping[str, Any], materials: Mapping[str, Any]) -> WireEntry:
@@ -138,13 +181,16 @@ def _entry(name: str, raw: Mapping[str, Any], materials: Mapping[str, Any]) -> W
         tip_length=shape.length,
         tip_angle=shape.angle,
         tip_stiffness_factor=1.0,  # the taper makes the tip soft
+        friction=coating_friction(raw["coating"]),
         chain_bodies=CHAIN_BODIES,
         max_timestep=CATALOGUE_TIMESTEP,
+        friction_cone=CATALOGUE_FRICTION_CONE,
     )
     return WireEntry(
         name=name, description=raw["description"], config=config,
         rated_tip_load_gf=float(raw["rated_tip_load_gf"]), rating_source=raw["rating_source"],
         modelled_on=raw["modelled_on"], core_material=raw["core_material"],
+        coating=raw["coating"],
     )
 
 
@@ -159,12 +205,7 @@ def entry(name: str) -> WireEntry:
     Raises:
         WireCatalogueError: For an unknown name; the message lists the valid ones.
     """
-    try:
-        return _catalogue()[name]
-    except (KeyError, TypeError):
-        raise WireCatalogueError(
-            f"Unknown wire preset {name!r}; valid: {list(names())}."
-        ) from None
+    return _named(_catalogue(), name, "preset")
 
 
 def shaped(wire: GuidewireConfig, tip: TipShape | str) -> GuidewireConfig:
@@ -204,11 +245,13 @@ def resolve(wire: str | GuidewireConfig | Mapping[str, Any] | None) -> Guidewire
     """A user's wire setting as a config: a preset name, a config, or a mapping.
 
     A mapping holds :class:`GuidewireConfig` fields, optionally with ``"preset"`` (the base,
-    default ``paper``) and ``"tip"`` (a :class:`TipShape`, ``"J"``, or ``{"length":,
-    "angle":}`` in m and rad). ``None`` gives ``paper``.
+    default ``paper``), ``"coating"`` (a name of :func:`coatings`: sets ``friction``, so
+    not both) and ``"tip"`` (a :class:`TipShape`, ``"J"``, or ``{"length":, "angle":}`` in
+    m and rad). ``None`` gives ``paper``.
 
     Raises:
-        WireCatalogueError: For an unknown preset, field or tip.
+        WireCatalogueError: For an unknown preset, field, coating or tip, or a coating and a
+            friction both given.
     """
     if wire is None:
         return entry(PAPER).config
@@ -221,11 +264,19 @@ def resolve(wire: str | GuidewireConfig | Mapping[str, Any] | None) -> Guidewire
         base = preset(fields.pop("preset", PAPER))
         tip = fields.pop("tip", None)
         valid = {f.name for f in dataclasses.fields(GuidewireConfig)}
-        unknown = sorted(set(fields) - valid)
+        unknown = sorted(set(fields) - valid - {"coating"})
         if unknown:
             raise WireCatalogueError(
-                f"Unknown wire fields {unknown}; valid: 'preset', 'tip' and {sorted(valid)}."
+                f"Unknown wire fields {unknown}; valid: 'preset', 'coating', 'tip' and "
+                f"{sorted(valid)}."
             )
+        if "coating" in fields:
+            if "friction" in fields:
+                raise WireCatalogueError(
+                    "A wire mapping sets its friction by 'coating' or by 'friction', not both; "
+                    f"got coating={fields['coating']!r} and friction={fields['friction']!r}."
+                )
+            fields["friction"] = coating_friction(fields.pop("coating"))
         if isinstance(tip, Mapping):
             if set(tip) != {"length", "angle"}:
                 raise WireCatalogueError(
