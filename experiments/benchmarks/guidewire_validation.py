@@ -183,19 +183,8 @@ def penetration_by_roll(vessel: vessels.Vessel,
 def inertia_independence() -> dict[str, dict[str, float | list[float]]]:
     """Inertia the quasi-static settings add, and the S-lumen insertion's tip shift (mm)."""
 
-    def tips(wire: GuidewireConfig, timestep: float | None, *settles: float) -> list[np.ndarray]:
-        """The tip after the insertion and each further hold of ``settles`` seconds."""
-        physics = torque.bent_tube_physics(wire, timestep)
-        validation.drive_to(physics, torque.INSERTION, 0.0)
-        out = []
-        for settle in settles:
-            validation.drive_to(physics, torque.INSERTION, 0.0, settle=settle)
-            healthy = physics.is_finite() and not physics.warnings()
-            out.append(physics.tip_position() if healthy else np.full(3, np.inf))
-        return out
-
     def tip(wire: GuidewireConfig, timestep: float | None) -> np.ndarray:
-        return tips(wire, timestep, 1.0)[0]
+        return torque.held_tips(wire, (1.0,), timestep)[0]
 
     out: dict[str, dict[str, float | list[float]]] = {}
     for name in wires.names():
@@ -203,7 +192,7 @@ def inertia_independence() -> dict[str, dict[str, float | list[float]]]:
         if wire.core_profile is None:
             continue
         factors = validation.inertia_factors(wire)
-        default, held = tips(wire, None, 1.0, 3.0)
+        default, held = torque.held_tips(wire, (1.0, 3.0))
         armature = tip(dataclasses.replace(wire, armature_time=2 * wire.armature_time), None)
         heavy = tip(wire, 0.001)
         light = tip(dataclasses.replace(wire, mass_scale=wire.mass_scale / 100), 0.001)

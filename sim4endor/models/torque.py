@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -110,6 +111,26 @@ def bent_tube_physics(wire: GuidewireConfig, timestep: float | None = None) -> G
     spec = build_spec(None, SceneConfig(wire=wire, driver=driver, timestep=timestep))
     add_tube(spec, s_path())
     return GuidewirePhysics.from_model(wrapper.MjModel(spec.compile()))
+
+
+def held_tips(wire: GuidewireConfig, holds: Sequence[float],
+              timestep: float | None = None) -> list[FloatArray]:
+    """Inserts ``wire`` through both bends, then holds the driver still: the tip's position
+    (m) after each successive hold of ``holds`` seconds.
+
+    A position is non-finite once the simulation is unhealthy (non-finite state or a MuJoCo
+    warning), so a difference with it never passes for a small shift.
+    """
+    from sim4endor.models.validation import drive_to
+
+    physics = bent_tube_physics(wire, timestep)
+    drive_to(physics, INSERTION, 0.0)
+    tips = []
+    for hold in holds:
+        drive_to(physics, INSERTION, 0.0, settle=hold)
+        healthy = physics.is_finite() and not physics.warnings()
+        tips.append(physics.tip_position() if healthy else np.full(3, np.inf))
+    return tips
 
 
 @dataclass(frozen=True)

@@ -263,20 +263,21 @@ def resolve(wire: str | GuidewireConfig | Mapping[str, Any] | None) -> Guidewire
         fields = dict(wire)
         base = preset(fields.pop("preset", PAPER))
         tip = fields.pop("tip", None)
+        coating = fields.pop("coating", None)
         valid = {f.name for f in dataclasses.fields(GuidewireConfig)}
-        unknown = sorted(set(fields) - valid - {"coating"})
+        unknown = sorted(set(fields) - valid)
         if unknown:
             raise WireCatalogueError(
                 f"Unknown wire fields {unknown}; valid: 'preset', 'coating', 'tip' and "
                 f"{sorted(valid)}."
             )
-        if "coating" in fields:
+        if coating is not None:
             if "friction" in fields:
                 raise WireCatalogueError(
                     "A wire mapping sets its friction by 'coating' or by 'friction', not both; "
-                    f"got coating={fields['coating']!r} and friction={fields['friction']!r}."
+                    f"got coating={coating!r} and friction={fields['friction']!r}."
                 )
-            fields["friction"] = coating_friction(fields.pop("coating"))
+            fields["friction"] = coating_friction(coating)
         if isinstance(tip, Mapping):
             if set(tip) != {"length", "angle"}:
                 raise WireCatalogueError(
