@@ -239,3 +239,34 @@ def test_the_pull_back_entry_brings_the_wire_into_a_sideways_branch_the_plain_ex
     while not timestep.last():
         timestep = env.step(entry(env.physics, env.task))
     assert env.task.step_info()["is_success"]
+
+
+def _reachability_script():
+    """experiments/benchmarks/expert_reachability.py as a module (it is a script, not part of
+    the package)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments/benchmarks/expert_reachability.py"
+    spec = importlib.util.spec_from_file_location("expert_reachability", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_reachability_starts_summary() -> None:
+    """With several starts per target the benchmark reports the episode rate's Wilson
+    interval and the targets reached from every start and from any."""
+    rows = [{"seed": seed, "target": target, "start": start, "outcome": outcome}
+            for seed, target, outcomes in ((1000, "D1", ("success", "timeout")),
+                                           (1000, "D2", ("success", "success")),
+                                           (1001, "AM", ("tip_force", "timeout")))
+            for start, outcome in enumerate(outcomes)]
+    summary = _reachability_script().starts_summary(rows)
+    assert summary["targets"] == 3
+    assert summary["targets_reached_every_start"] == 1  # D2
+    assert summary["targets_reached_any_start"] == 2  # D1 and D2
+    low, high = summary["success_rate_ci95"]
+    # 3 of 6: the Wilson interval is 0.5 -+ 0.312 (z = 1.96), symmetric about the rate.
+    assert low == pytest.approx(0.188, abs=1e-3) and high == pytest.approx(0.812, abs=1e-3)

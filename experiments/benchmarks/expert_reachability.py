@@ -19,11 +19,19 @@ shapes the wire's tip as a cardiologist would before wiring (default: the preset
 ``--workers N`` runs N coronary episodes at once (one process each); the rows come out in the
 same order and with the same results as with one.
 
+``--starts K`` runs every coronary target from K starts instead of one. Start 0 is the
+single-start run's (the env's random state seeded with the tree's seed); start k draws the
+initial roll (±30°) and insertion (0-1 mm) from seed ``tree seed + k * START_STRIDE``. A single
+episode can flip on a difference far below anything a user would call a change (0.0005° of tip
+angle, docs/tasks/coronary.md), so one start per target counts each target as 0 or 1 of a
+probability: the summary then gives the success rate over all episodes with its 95 % Wilson
+interval, and how many targets were reached from every start and from at least one.
+
 Usage:
     python experiments/benchmarks/expert_reachability.py [--episodes 8] [--json]
     python experiments/benchmarks/expert_reachability.py --domain coronary --trees 20
     python experiments/benchmarks/expert_reachability.py --domain coronary --expert probing \
-        --tip 3 75 --workers 2
+        --tip 3 75 --workers 2 [--starts 3]
 """
 
 from __future__ import annotations
@@ -32,6 +40,8 @@ import argparse
 import collections
 import math
 import multiprocessing
+
+from scipy.stats import binomtest
 
 from sim4endor import _json as strict_json
 from sim4endor import suite
@@ -42,6 +52,9 @@ TASKS = (("simplified_phantom", "task_a"), ("simplified_phantom", "task_b"),
 
 
 EXPERTS = {"centerline": CenterlineExpert, "probing": ProbingExpert}
+#: Start k > 0 of a coronary target seeds the env's random state with ``seed + k * START_STRIDE``
+#: (well clear of the tree seeds, so no start repeats another tree's start 0).
+START_STRIDE = 1_000_000
 
 
 def reachability(domain: str, task: str, episodes: int,
@@ -65,13 +78,16 @@ def reachability(domain: str, task: str, episodes: int,
     }
 
 
-def coronary_episode(job: tuple[int, str, str | dict[str, object], str]) -> dict[str, object]:
-    """Runs one expert episode on target ``job[1]`` of coronary tree ``job[0]``; its row."""
-    seed, target, wire, expert_name = job
+def coronary_episode(job: tuple[int, str, str | dict[str, object], str, int]
+                     ) -> dict[str, object]:
+    """Runs one expert episode from start ``job[4]`` on target ``job[1]`` of coronary tree
+    ``job[0]``; its row."""
+    seed, target, wire, expert_name, start = job
     env = suite.load("coronary", "navigate", {"pool_seed": seed, "pool_size": 1, "wire": wire,
-                                              "random": seed, "target": target})
+                                              "random": seed + start * START_STRIDE,
+                                              "target": target})
     info = run_expert(env, EXPERTS[expert_name]())
-    row = {"seed": seed, "tree": env.task.anatomy.vessel.name, "target": target,
+    row = {"seed": seed, "tree": env.task.anatomy.vessel.name, "target": target, "start": start,
            "outcome": "success" if info["is_success"] else str(info["failure"] or "timeout"),
            "time_s": round(env.physics.time(), 2),
            "distance_mm": round(float(info["manifold_distance"]) * 1e3, 1)}
@@ -87,31 +103,53 @@ def tree_targets(seed: int, wire: str | dict[str, object]) -> list[str]:
     return targets
 
 
+def starts_summary(rows: list[dict[str, object]]) -> dict[str, object]:
+    """The episode success rate of ``rows`` with its 95 % Wilson interval, and how many
+    (tree, target) pairs were reached from every start and from at least one."""
+    reached: dict[tuple[object, object], list[bool]] = collections.defaultdict(list)
+    for row in rows:
+        reached[row["seed"], row["target"]].append(row["outcome"] == "success")
+    successes = sum(sum(r) for r in reached.values())
+    interval = binomtest(successes, len(rows)).proportion_ci(0.95, method="wilson")
+    return {"success_rate_ci95": [interval.low, interval.high], "targets": len(reached),
+            "targets_reached_every_start": sum(all(r) for r in reached.values()),
+            "targets_reached_any_start": sum(any(r) for r in reached.values())}
+
+
 def coronary_reachability(first_seed: int, trees: int, wire: str | dict[str, object],
-                          expert_name: str, workers: int, as_json: bool) -> None:
-    """Runs the expert once on every distal target of ``trees`` coronary trees, an episode
-    per worker process at a time (spawned: CoACD's OpenMP does not survive a fork)."""
+                          expert_name: str, workers: int, starts: int, as_json: bool) -> None:
+    """Runs the expert from ``starts`` starts on every distal target of ``trees`` coronary
+    trees, an episode per worker process at a time (spawned: CoACD's OpenMP does not survive
+    a fork)."""
     seeds = range(first_seed, first_seed + trees)
-    outcomes: collections.Counter[str] = collections.Counter()
+    rows: list[dict[str, object]] = []
     with multiprocessing.get_context("spawn").Pool(workers) as pool:
         targets = pool.starmap(tree_targets, [(seed, wire) for seed in seeds])
-        jobs = [(seed, target, wire, expert_name)
-                for seed, names in zip(seeds, targets, strict=True) for target in names]
+        jobs = [(seed, target, wire, expert_name, start)
+                for seed, names in zip(seeds, targets, strict=True) for target in names
+                for start in range(starts)]
         for row in pool.imap(coronary_episode, jobs):
-            outcomes[str(row["outcome"])] += 1
+            rows.append(row)
             print(strict_json.dumps(row) if as_json else
-                  f"{row['tree']} {row['target']}: {row['outcome']} at {row['time_s']} s, "
-                  f"D {row['distance_mm']} mm", flush=True)
-    total = sum(outcomes.values())
+                  f"{row['tree']} {row['target']} (start {row['start']}): {row['outcome']} at "
+                  f"{row['time_s']} s, D {row['distance_mm']} mm", flush=True)
+    outcomes = collections.Counter(str(row["outcome"]) for row in rows)
+    total = len(rows)
     summary = {"domain": "coronary", "wire": wire, "expert": EXPERTS[expert_name].__name__,
-               "trees": trees, "first_seed": first_seed, "episodes": total,
+               "trees": trees, "first_seed": first_seed, "starts": starts, "episodes": total,
                "successes": outcomes["success"],
-               "success_rate": outcomes["success"] / total, "outcomes": dict(outcomes)}
-    print(strict_json.dumps(summary) if as_json else
-          f"coronary ({wire} wire, {summary['expert']}, {trees} trees from seed "
-          f"{first_seed}): "
-          f"{outcomes['success']}/{total} reached ({outcomes['success'] / total:.0%}); "
-          f"outcomes {dict(outcomes)}", flush=True)
+               "success_rate": outcomes["success"] / total, "outcomes": dict(outcomes),
+               **(starts_summary(rows) if starts > 1 else {})}
+    text = (f"coronary ({wire} wire, {summary['expert']}, {trees} trees from seed "
+            f"{first_seed}, {starts} start(s) per target): "
+            f"{outcomes['success']}/{total} episodes reached "
+            f"({outcomes['success'] / total:.0%}); outcomes {dict(outcomes)}")
+    if starts > 1:
+        low, high = summary["success_rate_ci95"]
+        text += (f"; 95 % interval {low:.0%}-{high:.0%}; of {summary['targets']} targets, "
+                 f"{summary['targets_reached_every_start']} reached from every start and "
+                 f"{summary['targets_reached_any_start']} from at least one")
+    print(strict_json.dumps(summary) if as_json else text, flush=True)
 
 
 def main() -> None:
@@ -127,9 +165,12 @@ def main() -> None:
     parser.add_argument("--expert", choices=tuple(EXPERTS), default="centerline")
     parser.add_argument("--workers", type=int, default=1,
                         help="episodes run at once, one process each (coronary)")
+    parser.add_argument("--starts", type=int, default=1,
+                        help="starts per coronary target (initial roll and insertion)")
     args = parser.parse_args()
-    if args.workers < 1:
-        parser.error(f"--workers must be at least 1, got {args.workers}")
+    for name in ("workers", "starts"):
+        if getattr(args, name) < 1:
+            parser.error(f"--{name} must be at least 1, got {getattr(args, name)}")
     if args.domain == "coronary":
         wire: str | dict[str, object] = args.wire
         if args.tip:
@@ -137,7 +178,7 @@ def main() -> None:
             wire = {"preset": args.wire, "tip": {"length": length_mm * 1e-3,
                                                  "angle": math.radians(angle_deg)}}
         coronary_reachability(args.first_seed, args.trees, wire, args.expert, args.workers,
-                              args.json)
+                              args.starts, args.json)
         return
     for domain, task in TASKS:
         row = reachability(domain, task, args.episodes, EXPERTS[args.expert]())
