@@ -40,6 +40,7 @@ import argparse
 import collections
 import math
 import multiprocessing
+from typing import cast
 
 from scipy.stats import binomtest
 
@@ -135,17 +136,19 @@ def coronary_reachability(first_seed: int, trees: int, wire: str | dict[str, obj
                   f"{row['time_s']} s, D {row['distance_mm']} mm", flush=True)
     outcomes = collections.Counter(str(row["outcome"]) for row in rows)
     total = len(rows)
-    summary = {"domain": "coronary", "wire": wire, "expert": EXPERTS[expert_name].__name__,
-               "trees": trees, "first_seed": first_seed, "starts": starts, "episodes": total,
-               "successes": outcomes["success"],
-               "success_rate": outcomes["success"] / total, "outcomes": dict(outcomes),
-               **(starts_summary(rows) if starts > 1 else {})}
+    summary: dict[str, object] = {
+        "domain": "coronary", "wire": wire, "expert": EXPERTS[expert_name].__name__,
+        "trees": trees, "first_seed": first_seed, "starts": starts, "episodes": total,
+        "successes": outcomes["success"], "success_rate": outcomes["success"] / total,
+        "outcomes": dict(outcomes)}
+    if starts > 1:
+        summary |= starts_summary(rows)
     text = (f"coronary ({wire} wire, {summary['expert']}, {trees} trees from seed "
             f"{first_seed}, {starts} start(s) per target): "
             f"{outcomes['success']}/{total} episodes reached "
             f"({outcomes['success'] / total:.0%}); outcomes {dict(outcomes)}")
     if starts > 1:
-        low, high = summary["success_rate_ci95"]
+        low, high = cast(list[float], summary["success_rate_ci95"])
         text += (f"; 95 % interval {low:.0%}-{high:.0%}; of {summary['targets']} targets, "
                  f"{summary['targets_reached_every_start']} reached from every start and "
                  f"{summary['targets_reached_any_start']} from at least one")
@@ -185,7 +188,8 @@ def main() -> None:
         if args.json:
             print(strict_json.dumps(row), flush=True)
             continue
-        others = ", ".join(f"{k} {v}" for k, v in row["other_outcomes"].items()) or "none"
+        other_outcomes = cast(dict[str, int], row["other_outcomes"])
+        others = ", ".join(f"{k} {v}" for k, v in other_outcomes.items()) or "none"
         time = "--" if row["mean_time_s"] is None else f"{row['mean_time_s']:.2f} s"
         print(f"{domain}/{task}: {row['successes']}/{row['episodes']} reached "
               f"(others: {others}); mean procedure time {time}", flush=True)
