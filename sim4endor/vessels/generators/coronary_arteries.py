@@ -98,7 +98,8 @@ class CoronaryArteriesConfig:
 
     Attributes:
         side: ``"left"`` (LM, LAD, LCX) or ``"right"`` (RCA).
-        size_sd: Spread of the drawn diameters and lengths in published SDs (0: the mean tree).
+        size_sd: Spread of the drawn diameters and lengths in published SDs, clipped at 2 SD
+            (0: the mean sizes). Angles, rolls and turns keep their SDs, unclipped.
         min_diameter: Smallest drawn lumen diameter (m): the vessels PCI treats, and the
             calibre a 0.014 in wire is steered through, are 1.5 mm and wider.
         stenoses: Number of focal stenoses, on distinct segments drawn at random.
