@@ -293,3 +293,22 @@ def test_a_shipped_policy_by_name_on_every_target_of_a_vessel_folder(
     assert not (shelf / "tiny" / "evaluation.json").exists()  # the package is never written
     status, out, err = _cli(["export", "tiny", "--out", str(tmp_path / "exported")], capsys)
     assert status == 0 and (tmp_path / "exported" / "policy.json").is_file(), err
+
+
+def test_the_scripted_expert_on_every_target_of_a_vessel_folder(
+    capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``evaluate expert --vessel DIR``: the reachability check of a user's own anatomy, with
+    the metrics and per-target breakdown of a policy's; the expert reaches both phantom
+    targets (docs/tasks/index.md: 8/8 each)."""
+    vessel = str(vessels.load("simplified_phantom").root)
+    status, out, err = _cli(["evaluate", "expert", "--vessel", vessel, "--wire", "workhorse",
+                             "--trials", "1", "--json", "--no-progress"], capsys)
+    assert status == 0, err
+    metrics = json.loads(out)
+    assert sorted(metrics["targets"]) == ["A", "B"] and metrics["trials"] == 2
+    assert metrics["success_rate"] == 1.0
+    assert metrics["max_tip_force_n"] > 0.0
+    for extra in ([], ["--vessel", vessel, "--target", "A"]):
+        status, _, err = _cli(["evaluate", "expert", *extra, "--trials", "1"], capsys)
+        assert status == 2 and "give --vessel" in err

@@ -288,6 +288,24 @@ def test_the_coronary_tip_force_limit_and_termination_overrides_keep_it(tmp_path
     assert phantom.task.config.termination.max_tip_force == 1.0  # the paper's
 
 
+@pytest.mark.parametrize(("wire", "limits"), [
+    ("workhorse", (40.0, 0.6)), ("stiff", (40.0, 0.6)), ("paper", (20.0, 1.0)), (None, (20.0, 1.0)),
+])
+def test_a_vessel_folder_with_a_coronary_wire_gets_the_coronary_limits(
+        wire: str | None, limits: tuple[float, float]) -> None:
+    kwargs = {"vessel": "simplified_phantom", "target": "A"} | ({"wire": wire} if wire else {})
+    env = suite.load("vessel", "navigate", kwargs)
+    termination = env.task.config.termination
+    assert (termination.time_limit, termination.max_tip_force) == limits
+    assert env._step_limit == pytest.approx(limits[0] / 0.05)
+    # The phantoms' own domains keep the paper's limits with any wire; overrides still apply.
+    phantom = suite.load("simplified_phantom", "task_a", {"wire": "workhorse"})
+    assert phantom.task.config.termination.time_limit == 20.0
+    shorter = suite.load("vessel", "navigate", {**kwargs, "termination": {"time_limit": 25.0}})
+    assert (shorter.task.config.termination.time_limit,
+            shorter.task.config.termination.max_tip_force) == (25.0, limits[1])
+
+
 def test_a_tree_another_process_is_building_is_waited_for_not_built_again(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from filelock import FileLock

@@ -64,9 +64,11 @@ def test_mesh_to_exported_policy_from_the_command_line(tmp_path: Path) -> None:
         elif words[0] == "python":
             words[0] = sys.executable
         outputs.append(run(words, tmp_path).stdout)
-    build, expert, train, evaluate, sac, export, robot = outputs
+    build, reach, expert, train, evaluate, sac, export, robot = outputs
     assert "lumen open 0.99" in build and "lumen open 0.98" not in build
     assert re.search(r"inlet \([-0-9., ]+\) mm, targets \['T1', 'T2'\]", build)
+    assert re.search(r"^T1 +2/2 successes", reach, re.M), reach
+    assert re.search(r"^all +\d/4 successes", reach, re.M), reach
     assert expert.startswith("my_y_expert.mp4: success after")
     config = (tmp_path / "runs" / "my_y" / "config.yaml").read_text()
     assert f"vessel: {tmp_path / 'vessels_user' / 'my_y'}" in config and "target: T1" in config

@@ -8,7 +8,16 @@ from pathlib import Path
 from sim4endor import _json as strict_json
 from sim4endor import assets
 from sim4endor.cli import args as arg_types
+from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.metrics import describe
+
+#: The RUN_OR_POLICY that names the scripted expert
+#: (:class:`sim4endor.rl.baselines.ScriptedExpert`).
+EXPERT = "expert"
+
+
+def _run_or_policy(spec: str) -> Path | str:
+    return EXPERT if spec == EXPERT else assets.run_or_policy(spec)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -24,10 +33,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "wire or tree pool) only print them."
         ),
     )
-    parser.add_argument("run_dir", type=assets.run_or_policy, metavar="RUN_OR_POLICY",
-                        help="folder written by `sim4endor train --out`, or a shipped "
+    parser.add_argument("run_dir", type=_run_or_policy, metavar="RUN_OR_POLICY",
+                        help="folder written by `sim4endor train --out`, a shipped "
                              "pretrained policy's name: "
-                             f"{', '.join(assets.policy_names()) or 'none'}")
+                             f"{', '.join(assets.policy_names()) or 'none'}; or "
+                             f"'{EXPERT}', the privileged scripted expert, with --vessel "
+                             "(is every target of an anatomy within the wire's reach?)")
     parser.add_argument("--trials", type=arg_types.positive_int,
                         help="episodes (default: 10; with --suite, per case: 1)")
     parser.add_argument("--seed", type=arg_types.seed, help="evaluation seed (default: the run's)")
@@ -64,6 +75,12 @@ def run(args: argparse.Namespace) -> int:
     from sim4endor.rl.runs import evaluate_run
 
     torch.set_num_threads(1)  # small networks: one thread is fastest and leaves cores free
+    if args.run_dir == EXPERT:
+        if args.vessel is None or args.target is not None or args.suite:
+            raise Sim4EndoRError(
+                f"RUN_OR_POLICY '{EXPERT}' runs on every target of a vessel: give --vessel "
+                "NAME_OR_DIR, without --target or --suite (the suite has the expert's rows).")
+        return _run_vessel(args)
     if args.suite:
         return _run_suite(args)
     if args.vessel is not None and args.target is None:
@@ -121,7 +138,10 @@ def _run_vessel(args: argparse.Namespace) -> int:
         config = dataclasses.replace(config, wire=args.wire)
     if args.seed is not None:
         config = dataclasses.replace(config, seed=args.seed)
-    metrics = generalisation.evaluate_vessel(args.run_dir, args.vessel, config,
+    from sim4endor.rl.baselines import ScriptedExpert
+
+    policy = ScriptedExpert() if args.run_dir == EXPERT else args.run_dir
+    metrics = generalisation.evaluate_vessel(policy, args.vessel, config,
                                              progress=not args.no_progress)
     if args.json:
         print(strict_json.dumps(metrics))  # noqa: T201

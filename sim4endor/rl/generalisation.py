@@ -268,27 +268,35 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
     return {"rows": rows, "targets": targets}
 
 
-def evaluate_vessel(run_dir: Path, vessel: str | Path, config: SuiteConfig,
+def evaluate_vessel(policy: Path | baselines.Baseline, vessel: str | Path, config: SuiteConfig,
                     progress: bool = False) -> dict[str, Any]:
-    """Runs a run's deterministic policy ``config.trials`` times on every target of a vessel
-    folder (``sim4endor vessel build`` output or a vessel name) with ``config.wire``.
+    """Runs a run's deterministic policy, or a reference row's policy (the scripted expert:
+    is every target of a new anatomy within the wire's reach?), ``config.trials`` times on
+    every target of a vessel folder (``sim4endor vessel build`` output or a vessel name) with
+    ``config.wire``.
 
     Returns:
         The :func:`~sim4endor.rl.metrics.summarize` metrics over all targets, plus
         ``targets``: the same metrics per target label.
     """
-    from sim4endor import vessels
     from sim4endor.rl.runs import evaluation_env, run_config
 
     loaded = vessels.load(vessel)
-    base = evaluation_env(run_config(run_dir).env, {
-        "domain": "vessel", "task": "navigate", "vessel": str(loaded.root), "wire": config.wire})
+    fields: dict[str, Any] = {"domain": "vessel", "task": "navigate",
+                              "vessel": str(loaded.root), "wire": config.wire}
+    make_actor: ActorFactory
+    if isinstance(policy, baselines.Baseline):
+        base = EnvConfig(**fields)  # a reference row reads no observation
+        make_actor = functools.partial(_baseline_actor, policy)
+    else:
+        base = evaluation_env(run_config(policy).env, fields)
+        make_actor = run_actor(policy)
     cases = [Case("vessel", target, dataclasses.replace(base, target=target))
              for target in sorted(loaded.targets)]
     envs = CaseEnvironments()
     try:
-        episodes = run_cases(cases, run_actor(run_dir), config, envs,
-                             label=loaded.name, progress=progress)
+        episodes = run_cases(cases, make_actor, config, envs, label=loaded.name,
+                             progress=progress)
     finally:
         envs.close()
     every = [e for runs in episodes.values() for e in runs]
