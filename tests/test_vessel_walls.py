@@ -92,6 +92,29 @@ def test_parallel_build_after_coacd_in_this_process_does_not_hang() -> None:
     assert result.returncode == 0, result.stderr
 
 
+def test_a_script_piped_into_python_builds_a_wall_in_series() -> None:
+    # Spawned workers re-run the main script from its path; piped in (``python -``) it has
+    # none, and the pool replaced its dying workers forever: a coronary tree's first load
+    # never ended.
+    script = textwrap.dedent(
+        """
+        import dataclasses
+        import numpy as np
+        from test_vessel_walls import half_tube_piece
+        from sim4endor.vessels.walls import build_hulls
+
+        ctx = half_tube_piece(use_coacd=False)
+        parallel = dataclasses.replace(ctx, params=dataclasses.replace(ctx.params, workers=2))
+        print(len(build_hulls(parallel, [np.arange(len(ctx.faces))] * 2)))
+        """
+    )
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parent)}
+    result = subprocess.run([sys.executable, "-"], input=script, env=env, timeout=120,
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert int(result.stdout) == _build_in_worker(0)
+
+
 def _build_in_worker(_: int) -> int:
     ctx = half_tube_piece(use_coacd=False)
     parallel = dataclasses.replace(ctx, params=dataclasses.replace(ctx.params, workers=2))

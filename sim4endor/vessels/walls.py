@@ -33,7 +33,9 @@ import contextlib
 import logging
 import multiprocessing
 import multiprocessing.pool
+import os
 import signal
+import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -358,6 +360,25 @@ def _worker_pool(workers: int) -> Iterator[multiprocessing.pool.Pool]:
         pool.join()
 
 
+def _can_spawn() -> bool:
+    """Whether this process can start the spawned worker pool.
+
+    A daemonic process (a multiprocessing pool's or a collector's worker that draws a tree not
+    built yet) may not start children. And a spawned worker re-runs the main script from its
+    path: a script piped in (``python - < script.py``, main file ``<stdin>``) has none, so
+    every worker dies on start and ``multiprocessing.Pool`` replaces it forever, a build that
+    never ends. Both build in series.
+    """
+    if multiprocessing.current_process().daemon:
+        return False
+    main_file = getattr(sys.modules.get("__main__"), "__file__", None)
+    if main_file is not None and not os.path.isfile(main_file):
+        logger.info("main script %s is not a file that spawned workers can re-run: building "
+                    "the wall in one process", main_file)
+        return False
+    return True
+
+
 def build_hulls(
     ctx: WallContext,
     pieces: list[IntArray],
@@ -365,9 +386,7 @@ def build_hulls(
 ) -> list[Hull]:
     """Returns the hulls of all pieces, in piece order (deterministic for any worker count)."""
     jobs = [ctx.subset(p) for p in pieces]
-    # A daemonic process (a multiprocessing pool's or a collector's worker that draws a tree
-    # not built yet) may not start children: it builds in series.
-    if ctx.params.workers > 1 and len(pieces) > 1 and not multiprocessing.current_process().daemon:
+    if ctx.params.workers > 1 and len(pieces) > 1 and _can_spawn():
         with _worker_pool(ctx.params.workers) as pool:
             results: Iterator[list[Hull]] = pool.imap(_worker, jobs, chunksize=8)
             if progress is not None:
