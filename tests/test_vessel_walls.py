@@ -86,10 +86,17 @@ def test_parallel_build_after_coacd_in_this_process_does_not_hang() -> None:
         assert len(hulls) == 4 * len(serial), (len(hulls), len(serial))
         """
     )
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parent)}
-    result = subprocess.run([sys.executable, "-c", script], env=env, timeout=120,
-                            capture_output=True, text=True)
+    result = _run_python(script, piped=False)
     assert result.returncode == 0, result.stderr
+
+
+def _run_python(script: str, piped: bool) -> subprocess.CompletedProcess[str]:
+    """Runs ``script`` in a new interpreter that can import this module, as ``python -c`` or
+    piped into ``python -``; a hang fails at 120 s."""
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parent)}
+    command = [sys.executable, "-"] if piped else [sys.executable, "-c", script]
+    return subprocess.run(command, input=script if piped else None, env=env, timeout=120,
+                          capture_output=True, text=True)
 
 
 def test_a_script_piped_into_python_builds_a_wall_in_series() -> None:
@@ -108,9 +115,7 @@ def test_a_script_piped_into_python_builds_a_wall_in_series() -> None:
         print(len(build_hulls(parallel, [np.arange(len(ctx.faces))] * 2)))
         """
     )
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parent)}
-    result = subprocess.run([sys.executable, "-"], input=script, env=env, timeout=120,
-                            capture_output=True, text=True)
+    result = _run_python(script, piped=True)
     assert result.returncode == 0, result.stderr
     assert int(result.stdout) == _build_in_worker(0)
 
