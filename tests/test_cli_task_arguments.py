@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -11,6 +12,7 @@ from rl_testing import pendulum_env, tiny_config
 
 from sim4endor import vessels
 from sim4endor.cli import main
+from sim4endor.models import wires
 from sim4endor.rl import envs as rl_envs
 from sim4endor.rl.config import ConfigError, EnvConfig, apply_overrides, default_config
 from sim4endor.rl.export import ExportError, export_policy
@@ -79,6 +81,33 @@ def test_an_unknown_wire_preset_is_refused_by_name(
     status, _, err = _cli(["train", "sac", "--wire", "floppy", "--frames", "10", "--out",
                            str(out), "--no-progress"], capsys)
     assert status == 2 and "floppy" in err and "workhorse" in err
+    assert not out.exists()
+
+
+def test_a_tip_shape_reaches_the_task_and_a_bad_one_is_refused_by_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--tip LENGTH_MM,ANGLE_DEG|J`` shapes the ``--wire`` preset's tip in every command that
+    takes task arguments, and a run stores it as written."""
+    config = apply_overrides(default_config("sac"), ["env.wire=workhorse", "env.tip=1.5,60"])
+    wire = wires.resolve(config.env.task_kwargs(0)["wire"])
+    assert (wire.tip_length, wire.tip_angle) == pytest.approx((0.0015, math.radians(60)))
+    assert wires.resolve(EnvConfig(wire="stiff", tip="j").task_kwargs(0)["wire"]).tip_angle \
+        == pytest.approx(wires.J_ANGLE)
+    with pytest.raises(ConfigError, match=r"env\.tip='3,75' shapes the tip of env\.wire"):
+        EnvConfig(tip="3,75")
+    with pytest.raises(ConfigError, match=r"env\.tip: Tip shape '3,95'.*30-90 deg"):
+        EnvConfig(wire="workhorse", tip="3,95")
+    out = tmp_path / "run"
+    for tip, message in (("3x75", "LENGTH_MM,ANGLE_DEG (e.g. 3,75) or J, got '3x75'"),
+                         ("5,60", "length must be 1-3 mm")):
+        with pytest.raises(SystemExit) as exited:  # argparse's own refusal
+            main(["train", "sac", "--wire", "workhorse", "--tip", tip, "--out", str(out)])
+        err = capsys.readouterr().err
+        assert exited.value.code == 2 and "argument --tip: " in err and message in err
+    status, _, err = _cli(["train", "sac", "--tip", "3,75", "--frames", "10", "--out",
+                           str(out), "--no-progress"], capsys)
+    assert status == 2 and "name the wire preset too" in err
     assert not out.exists()
 
 
@@ -295,14 +324,15 @@ def test_a_shipped_policy_by_name_on_every_target_of_a_vessel_folder(
     assert status == 0 and (tmp_path / "exported" / "policy.json").is_file(), err
 
 
-def test_the_scripted_expert_on_every_target_of_a_vessel_folder(
-    capsys: pytest.CaptureFixture[str]
+@pytest.mark.parametrize("expert", ["expert", "probing-expert"])
+def test_a_scripted_expert_on_every_target_of_a_vessel_folder(
+    expert: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """``evaluate expert --vessel DIR``: the reachability check of a user's own anatomy, with
-    the metrics and per-target breakdown of a policy's; the expert reaches both phantom
-    targets (docs/tasks/index.md: 8/8 each)."""
+    """``evaluate expert|probing-expert --vessel DIR``: the reachability check of a user's own
+    anatomy, with the metrics and per-target breakdown of a policy's; both experts reach both
+    phantom targets (docs/tasks/index.md: 8/8 each)."""
     vessel = str(vessels.load("simplified_phantom").root)
-    status, out, err = _cli(["evaluate", "expert", "--vessel", vessel, "--wire", "workhorse",
+    status, out, err = _cli(["evaluate", expert, "--vessel", vessel, "--wire", "workhorse",
                              "--trials", "1", "--json", "--no-progress"], capsys)
     assert status == 0, err
     metrics = json.loads(out)
@@ -310,5 +340,5 @@ def test_the_scripted_expert_on_every_target_of_a_vessel_folder(
     assert metrics["success_rate"] == 1.0
     assert metrics["max_tip_force_n"] > 0.0
     for extra in ([], ["--vessel", vessel, "--target", "A"]):
-        status, _, err = _cli(["evaluate", "expert", *extra, "--trials", "1"], capsys)
-        assert status == 2 and "give --vessel" in err
+        status, _, err = _cli(["evaluate", expert, *extra, "--trials", "1"], capsys)
+        assert status == 2 and f"'{expert}' runs on every target" in err

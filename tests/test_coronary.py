@@ -14,7 +14,7 @@ import pytest
 from sim4endor import suite
 from sim4endor.models import wires
 from sim4endor.models.guidewire import GuidewireConfig, segment_lengths
-from sim4endor.models.scene import SceneConfig, SceneError, fit_segments
+from sim4endor.models.scene import SOFT_TIP_FILL, SceneConfig, SceneError, fit_segments
 from sim4endor.tasks import TaskConfigError, coronary
 from sim4endor.vessels.generators.coronary_arteries import (
     FINET,
@@ -243,7 +243,7 @@ def test_the_coronary_scene_keeps_tips_that_span_the_guide_bore_and_narrows_wide
     assert scene.wire.core_profile == workhorse.core_profile
     assert scene.wire.tip_angle == workhorse.tip_angle  # 2 mm, 45 degrees: as shaped
     assert scene.driver.max_insertion == coronary.MAX_INSERTION
-    room = coronary.TIP_FILL * (CoronaryArteriesConfig().catheter_radius - workhorse.radius)
+    room = SOFT_TIP_FILL * (CoronaryArteriesConfig().catheter_radius - workhorse.radius)
     paper = wires.preset("paper")  # 5 mm, 35 degrees: 1.48 mm wide, within the 7F bore
     assert coronary.scene_for(SceneConfig(wire=paper)).wire.tip_angle == paper.tip_angle
     wide = dataclasses.replace(workhorse, tip_length=3.5e-3, tip_angle=math.radians(75.0))

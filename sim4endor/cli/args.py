@@ -35,6 +35,18 @@ def _int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
 
 
+def tip_shape(text: str) -> str:
+    """A tip shape, ``LENGTH_MM,ANGLE_DEG`` or ``J`` (:func:`sim4endor.models.wires.parse_tip`),
+    kept as written: it is stored so in a run's config."""
+    from sim4endor.models.wires import WireCatalogueError, parse_tip  # loads MuJoCo
+
+    try:
+        parse_tip(text)
+    except WireCatalogueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def add_task_arguments(parser: argparse.ArgumentParser, *, evaluation_split: bool = False) -> None:
     """Adds the domain-specific task arguments (each is left out unless given).
 
@@ -51,6 +63,10 @@ def add_task_arguments(parser: argparse.ArgumentParser, *, evaluation_split: boo
     group.add_argument("--target", help="domain vessel: the target label, e.g. T1")
     group.add_argument("--wire", metavar="PRESET",
                        help="guidewire preset, e.g. workhorse (default: the domain's wire)")
+    group.add_argument("--tip", type=tip_shape, metavar="LENGTH_MM,ANGLE_DEG|J",
+                       help="shape the --wire preset's tip as a cardiologist does: the distal "
+                            "1-3 mm bent through 30-90 deg (e.g. 3,75), or J (default: the "
+                            "preset's shape)")
     group.add_argument("--pool-seed", type=seed, metavar="SEED",
                        help="generated trees: seed of the first training tree")
     group.add_argument("--pool-size", type=positive_int, metavar="N",
@@ -70,7 +86,7 @@ def task_arguments(args: argparse.Namespace) -> dict[str, Any]:
     A vessel given as an existing folder is stored as an absolute path, so a run's saved
     config still finds it from another working directory.
     """
-    names = ("vessel", "target", "wire", "pool_seed", "pool_size", "eval_pool_seed",
+    names = ("vessel", "target", "wire", "tip", "pool_seed", "pool_size", "eval_pool_seed",
              "observations")
     given = {name: getattr(args, name, None) for name in names}
     if given["vessel"] is not None and Path(given["vessel"]).exists():

@@ -11,13 +11,15 @@ from sim4endor.cli import args as arg_types
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.metrics import describe
 
-#: The RUN_OR_POLICY that names the scripted expert
-#: (:class:`sim4endor.rl.baselines.ScriptedExpert`).
-EXPERT = "expert"
+#: The RUN_OR_POLICY names of the scripted experts (:class:`sim4endor.rl.baselines.
+#: ScriptedExpert`; the names `render` and `view` take): the reactive one, and the probing one,
+#: the reachability check of an anatomy.
+EXPERT, PROBING_EXPERT = "expert", "probing-expert"
+EXPERTS = (EXPERT, PROBING_EXPERT)
 
 
 def _run_or_policy(spec: str) -> Path | str:
-    return EXPERT if spec == EXPERT else assets.run_or_policy(spec)
+    return spec if spec in EXPERTS else assets.run_or_policy(spec)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -36,9 +38,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("run_dir", type=_run_or_policy, metavar="RUN_OR_POLICY",
                         help="folder written by `sim4endor train --out`, a shipped "
                              "pretrained policy's name: "
-                             f"{', '.join(assets.policy_names()) or 'none'}; or "
-                             f"'{EXPERT}', the privileged scripted expert, with --vessel "
-                             "(is every target of an anatomy within the wire's reach?)")
+                             f"{', '.join(assets.policy_names()) or 'none'}; or, with "
+                             "--vessel, a privileged scripted expert on every target: "
+                             "'expert' (reactive) or 'probing-expert' (simulates aims ahead "
+                             "where it is stuck: is every target within the wire's reach?)")
     parser.add_argument("--trials", type=arg_types.positive_int,
                         help="episodes (default: 10; with --suite, per case: 1)")
     parser.add_argument("--seed", type=arg_types.seed, help="evaluation seed (default: the run's)")
@@ -75,11 +78,12 @@ def run(args: argparse.Namespace) -> int:
     from sim4endor.rl.runs import evaluate_run
 
     torch.set_num_threads(1)  # small networks: one thread is fastest and leaves cores free
-    if args.run_dir == EXPERT:
+    if args.run_dir in EXPERTS:
         if args.vessel is None or args.target is not None or args.suite:
             raise Sim4EndoRError(
-                f"RUN_OR_POLICY '{EXPERT}' runs on every target of a vessel: give --vessel "
-                "NAME_OR_DIR, without --target or --suite (the suite has the expert's rows).")
+                f"RUN_OR_POLICY '{args.run_dir}' runs on every target of a vessel: give "
+                "--vessel NAME_OR_DIR, without --target or --suite (the suite has the expert's "
+                "rows).")
         return _run_vessel(args)
     if args.suite:
         return _run_suite(args)
@@ -112,6 +116,8 @@ def _run_suite(args: argparse.Namespace) -> int:
                                         trials=args.trials or 1, max_steps=args.max_steps)
     if args.wire:
         config = dataclasses.replace(config, wire=args.wire)
+    if args.tip:
+        config = dataclasses.replace(config, tip=args.tip)
     if args.seed is not None:
         config = dataclasses.replace(config, seed=args.seed)
     if args.steve is not None:
@@ -136,11 +142,14 @@ def _run_vessel(args: argparse.Namespace) -> int:
     config = generalisation.SuiteConfig(trials=args.trials or 1)
     if args.wire:
         config = dataclasses.replace(config, wire=args.wire)
+    if args.tip:
+        config = dataclasses.replace(config, tip=args.tip)
     if args.seed is not None:
         config = dataclasses.replace(config, seed=args.seed)
     from sim4endor.rl.baselines import ScriptedExpert
 
-    policy = ScriptedExpert() if args.run_dir == EXPERT else args.run_dir
+    policy = (ScriptedExpert(probing=args.run_dir == PROBING_EXPERT)
+              if args.run_dir in EXPERTS else args.run_dir)
     metrics = generalisation.evaluate_vessel(policy, args.vessel, config,
                                              progress=not args.no_progress)
     if args.json:

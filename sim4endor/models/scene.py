@@ -36,6 +36,20 @@ from sim4endor.models.guidewire import (
 from sim4endor.vessels import CENTERLINE_FILE, Vessel
 from sim4endor.vessels.manifest import MANIFEST_FILE
 
+#: How wide a tapered-core wire's pre-bent tip may be, in (inlet bore radius − wire radius),
+#: where the wire starts (a coronary tree's guide catheter): 2 lets the tip reach across the
+#: bore (shaft on one wall, tip end at the other), 1.70 mm for the 7F guide and a 0.014 in wire,
+#: as a cardiologist shapes a tip to the proximal vessel's calibre; a 1 gf tip bends where a
+#: distal lumen is narrower. The phantoms' 0.85 of the narrowest lumen (made for the paper
+#: wire's stiff 118 gf tip) cut the workhorse's 2 mm/45° tip to 28°, 0.49 mm off the shaft's
+#: axis in a 4.5 mm left main, where the tip then rarely caught the branch the path takes: 46 of
+#: 76 coronary tuning targets (trees 0-19) reached with 28°, 54 with the preset's 45°. Until
+#: 2026-11-26 the coronary room was that of the smallest lumen drawn (1.5 mm), which capped every
+#: tip at 1.14 mm: a 3 mm tip at 75° became 3 mm at 46°. Let through, it took the probing expert
+#: from 61 to 67 of 79 tuning targets and from 69 to 71 held out (docs/tasks/coronary.md). Since
+#: 2026-11-27 vessel folders wired with such a wire take the same rule (:func:`config_for_vessel`).
+SOFT_TIP_FILL = 2.0
+
 
 class SceneError(Sim4EndoRError, ValueError):
     """Raised when a wire cannot be placed in a vessel; the message names the fix."""
@@ -66,12 +80,23 @@ def config_for_vessel(
     Per-step cost grows with the number of wire segments, so the wire is only as long as the
     deepest target needs: ``max_insertion`` = the largest centerline distance from the inlet
     to a target plus ``margin``; the wire adds the protrusion and 3 mm of sheath slack.
-    If the pre-bent tip's lateral offset exceeds ``tip_fill`` × (narrowest lumen radius −
-    wire radius), the tip angle is reduced until it fits (a 35°/5 mm tip is 1.48 mm wide; a
-    coronary branch of 0.85 mm radius needs about 12°).
+
+    The tip: a uniform wire's (the ``paper`` preset's stiff 118 gf tip) is narrowed until its
+    lateral offset is at most ``tip_fill`` × (narrowest lumen radius − wire radius), as the
+    paper's setup needs (a 35°/5 mm tip is 1.48 mm wide; a coronary branch of 0.85 mm radius
+    needs about 12°). A tapered-core wire's soft tip (the catalogue's coronary wires) bends
+    where a lumen is narrower, as a real one does, so it keeps the shape given to it unless it
+    is wider than :data:`SOFT_TIP_FILL` × (inlet radius − wire radius), as on the ``coronary``
+    domain; narrowed to the narrowest lumen, the workhorse's 2 mm/45° tip became 28° and a
+    3 mm/75° one 19° in a 1.5 mm branch, and the probing expert reached fewer targets of
+    generated coronary trees built as vessel folders (docs/tasks/coronary.md, Measured).
     """
     scene = fit_travel(vessel, base, margin)
-    wire = fit_tip(scene.wire, float(vessel.centerline.radii.min()), tip_fill, vessel.name)
+    if scene.wire.core_profile is None:
+        wire = fit_tip(scene.wire, float(vessel.centerline.radii.min()), tip_fill, vessel.name)
+    else:
+        wire = fit_tip(scene.wire, vessel.manifest.inlet.radius, SOFT_TIP_FILL,
+                       f"{vessel.name}'s inlet")
     return dataclasses.replace(scene, wire=wire)
 
 

@@ -227,6 +227,31 @@ def shaped(wire: GuidewireConfig, tip: TipShape | str) -> GuidewireConfig:
     return dataclasses.replace(wire, tip_length=tip.length, tip_angle=tip.angle)
 
 
+def parse_tip(text: str) -> TipShape | str:
+    """A tip shape as written on a command line or in a run's config: ``LENGTH_MM,ANGLE_DEG``
+    (``"3,75"``: the distal 3 mm bent through 75°) or ``"J"``.
+
+    Raises:
+        WireCatalogueError: For any other text, or a shape outside :class:`TipShape`'s ranges.
+    """
+    if text.strip().upper() == "J":
+        return "J"
+    try:
+        length_mm, angle_deg = (float(part) for part in text.split(","))
+    except ValueError:
+        raise WireCatalogueError(
+            f"A tip shape is LENGTH_MM,ANGLE_DEG (e.g. 3,75) or J, got {text!r}."
+        ) from None
+    try:
+        return TipShape.degrees(length_mm, angle_deg)
+    except WireCatalogueError:  # its message is in SI units; say it in the ones written
+        (short, long), (low, high) = SHAPE_LENGTH_RANGE, SHAPE_ANGLE_RANGE
+        raise WireCatalogueError(
+            f"Tip shape {text!r}: the shaped length must be {short / _MM:g}-{long / _MM:g} mm "
+            f"and the angle {math.degrees(low):g}-{math.degrees(high):g} deg (or J)."
+        ) from None
+
+
 def preset(name: str, tip: TipShape | str | None = None) -> GuidewireConfig:
     """Returns the wire of preset ``name``, its tip shaped by ``tip`` if given.
 

@@ -9,7 +9,9 @@ the task's evaluation environment, metrics of :func:`sim4endor.rl.metrics.summar
   to be reported on another;
 * :class:`RandomActions`: uniform random actions in [-1, 1]² from a seeded generator;
 * :class:`ScriptedExpert`: the privileged :class:`~sim4endor.tasks.expert.CenterlineExpert`,
-  the upper reference (it reads the wire's shape and the centerline).
+  the upper reference (it reads the wire's shape and the centerline); with ``probing`` its
+  :class:`~sim4endor.tasks.expert.ProbingExpert`, which also simulates aims ahead where it is
+  stuck: the reachability check of an anatomy.
 
 Example:
     >>> from sim4endor.rl.baselines import ConstantAction, evaluate_baseline
@@ -33,7 +35,7 @@ from sim4endor.rl.config import EnvConfig, EvalConfig
 from sim4endor.rl.envs import sim4endor_env
 from sim4endor.rl.evaluation import rollout_episodes
 from sim4endor.rl.metrics import summarize
-from sim4endor.tasks.expert import CenterlineExpert
+from sim4endor.tasks.expert import CenterlineExpert, ProbingExpert
 
 #: The constant actions :func:`best_constant` tries: insertion {0.5, 1} × rotation
 #: {-1, -0.5, -0.2, 0, 0.2, 0.5, 1}.
@@ -74,12 +76,20 @@ class RandomActions:
 
 @dataclasses.dataclass(frozen=True)
 class ScriptedExpert:
-    """The privileged centerline expert (:mod:`sim4endor.tasks.expert`)."""
+    """The privileged centerline expert (:mod:`sim4endor.tasks.expert`).
+
+    Attributes:
+        probing: Run :class:`~sim4endor.tasks.expert.ProbingExpert`, the reachability check
+            (lookahead on a copy of the simulation where the plain expert is stuck), instead of
+            the reactive :class:`~sim4endor.tasks.expert.CenterlineExpert`.
+    """
+
+    probing: bool = False
 
     @property
     def label(self) -> str:
-        """``scripted expert (privileged)``."""
-        return "scripted expert (privileged)"
+        """``scripted expert (privileged)``, or ``probing expert (privileged)``."""
+        return f"{'probing' if self.probing else 'scripted'} expert (privileged)"
 
 
 Baseline = ConstantAction | RandomActions | ScriptedExpert
@@ -94,7 +104,8 @@ class _BaselinePolicy(TensorDictModuleBase):
         self.out_keys = ["action"]
         self._baseline = baseline
         self._generator = torch.Generator().manual_seed(getattr(baseline, "seed", 0))
-        self._expert = CenterlineExpert()
+        probing = isinstance(baseline, ScriptedExpert) and baseline.probing
+        self._expert = ProbingExpert() if probing else CenterlineExpert()
         # The expert reads the physics, which the TorchRL wrappers hand through by attribute.
         self._dm_env = env.base_env.dm_env if isinstance(baseline, ScriptedExpert) else None
 

@@ -97,6 +97,9 @@ class EnvConfig:
         target: domain ``vessel``: the target label, e.g. ``T1``.
         wire: a guidewire preset of :mod:`sim4endor.models.wires` (``None``: the domain's
             default wire).
+        tip: the shape a cardiologist bends into ``wire``'s tip (:func:`sim4endor.models.
+            wires.parse_tip`): ``"LENGTH_MM,ANGLE_DEG"``, e.g. ``"3,75"``, or ``"J"``
+            (``None``: the preset's own shape). Needs ``wire``.
         pool_seed: generated-tree domains: seed of the first training tree.
         pool_size: generated-tree domains: number of training trees.
         eval_pool_seed: generated-tree domains: seed of the first evaluation tree; a seed at
@@ -113,6 +116,7 @@ class EnvConfig:
     vessel: str | None = None
     target: str | None = None
     wire: str | None = None
+    tip: str | None = None
     pool_seed: int | None = None
     pool_size: int | None = None
     eval_pool_seed: int | None = None
@@ -126,6 +130,17 @@ class EnvConfig:
         if self.observations != "paper" and self.extra_observations:
             raise ConfigError("env.extra_observations extend the 'paper' set only; the "
                               f"{self.observations!r} set is used as it is.")
+        if self.tip is not None:
+            # Imported here: the wire catalogue loads MuJoCo, which configs and --help do not need.
+            from sim4endor.models.wires import WireCatalogueError, parse_tip
+
+            if self.wire is None:
+                raise ConfigError(f"env.tip={self.tip!r} shapes the tip of env.wire: name the "
+                                  "wire preset too (e.g. workhorse).")
+            try:
+                parse_tip(self.tip)
+            except WireCatalogueError as exc:
+                raise ConfigError(f"env.tip: {exc}") from None
         if self.eval_pool_seed is not None and self.pool_size is None:
             raise ConfigError("env.eval_pool_seed needs env.pool_size (the training trees' "
                               "count), so the two splits can be told apart.")
@@ -148,7 +163,12 @@ class EnvConfig:
                                   "observations": observations}
         pool_seed = self.eval_pool_seed if evaluation and self.eval_pool_seed is not None \
             else self.pool_seed
-        given = {"vessel": self.vessel, "target": self.target, "wire": self.wire,
+        wire: str | dict[str, Any] | None = self.wire
+        if self.tip is not None:
+            from sim4endor.models.wires import parse_tip
+
+            wire = {"preset": self.wire, "tip": parse_tip(self.tip)}
+        given = {"vessel": self.vessel, "target": self.target, "wire": wire,
                  "pool_seed": pool_seed, "pool_size": self.pool_size}
         kwargs.update({key: value for key, value in given.items() if value is not None})
         return kwargs

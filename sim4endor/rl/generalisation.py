@@ -62,6 +62,8 @@ class SuiteConfig:
         trees: Generated coronary trees of the ``held_out_trees`` group.
         first_seed: Seed of the first of them.
         wire: Guidewire preset of every case.
+        tip: Its tip shape (``EnvConfig.tip``: ``"LENGTH_MM,ANGLE_DEG"`` or ``"J"``;
+            ``None``: the preset's).
         trials: Episodes per case.
         seed: Start-state seed of every case's episodes.
         max_steps: Step cap per episode (the coronary domain's 40 s at 20 Hz; the tasks'
@@ -73,6 +75,7 @@ class SuiteConfig:
     trees: int = 20
     first_seed: int = 1000
     wire: str = "workhorse"
+    tip: str | None = None
     trials: int = 1
     seed: int = baselines.REPORT_SEED
     max_steps: int = 800
@@ -109,7 +112,7 @@ def tree_cases(first_seed: int, trees: int, base: EnvConfig) -> list[Case]:
 
 def suite_cases(config: SuiteConfig, observations: str) -> list[Case]:
     """The cases of every group for a policy observing ``observations``."""
-    base = EnvConfig(observations=observations, wire=config.wire)
+    base = EnvConfig(observations=observations, wire=config.wire, tip=config.tip)
     cases = tree_cases(config.first_seed, config.trees, base)
     cases += [Case("phantoms", f"{phantom} {task}",
                    dataclasses.replace(base, domain=phantom, task=task))
@@ -207,7 +210,7 @@ def best_constant_action(config: SuiteConfig, observations: str, envs: CaseEnvir
     four trees (seeds from :data:`SELECTION_FIRST_SEED`) and the phantoms' targets, started
     from :data:`baselines.SELECTION_SEED`: cases and starts apart from the reported ones."""
     selection = dataclasses.replace(config, seed=baselines.SELECTION_SEED, trials=1)
-    base = EnvConfig(observations=observations, wire=config.wire)
+    base = EnvConfig(observations=observations, wire=config.wire, tip=config.tip)
     cases = [Case("phantoms", f"{phantom} {task}",
                   dataclasses.replace(base, domain=phantom, task=task))
              for phantom in PHANTOMS for task in PHANTOM_TASKS]
@@ -283,7 +286,8 @@ def evaluate_vessel(policy: Path | baselines.Baseline, vessel: str | Path, confi
 
     loaded = vessels.load(vessel)
     fields: dict[str, Any] = {"domain": "vessel", "task": "navigate",
-                              "vessel": str(loaded.root), "wire": config.wire}
+                              "vessel": str(loaded.root), "wire": config.wire,
+                              "tip": config.tip}
     make_actor: ActorFactory
     if isinstance(policy, baselines.Baseline):
         base = EnvConfig(**fields)  # a reference row reads no observation

@@ -26,7 +26,13 @@ from pathlib import Path
 from typing import Literal
 
 from sim4endor.models import wires
-from sim4endor.models.scene import SceneConfig, fit_segments, fit_tip, with_travel
+from sim4endor.models.scene import (
+    SOFT_TIP_FILL,
+    SceneConfig,
+    fit_segments,
+    fit_tip,
+    with_travel,
+)
 from sim4endor.tasks import anatomy
 from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, compile_anatomy
 from sim4endor.tasks.config import TaskConfigError, TerminationConfig
@@ -35,17 +41,6 @@ from sim4endor.tasks.config import TaskConfigError, TerminationConfig
 DEFAULT_POOL_SIZE = 8
 #: The wire when ``task_kwargs`` does not say.
 DEFAULT_WIRE = "workhorse"
-#: How wide the pre-bent tip may be, in (guide catheter bore radius − wire radius): 2 lets the
-#: tip reach across the bore it starts in (shaft on one wall, tip end at the other), 1.70 mm
-#: for the 7F guide and a 0.014 in wire, as a cardiologist shapes a tip to the proximal
-#: vessel's calibre; a 1 gf tip bends where a distal lumen is narrower. The phantoms' 0.85 (made
-#: for the paper wire's stiff 118 gf tip) cut the workhorse's 2 mm/45° tip to 28°, 0.49 mm off
-#: the shaft's axis in a 4.5 mm left main, where the tip then rarely caught the branch the path
-#: takes: 46 of 76 tuning targets (trees 0-19) reached with 28°, 54 with the preset's 45°.
-#: Until 2026-11-26 the room was that of the smallest lumen drawn (1.5 mm), which capped every
-#: tip at 1.14 mm: a 3 mm tip at 75° became 3 mm at 46°. Let through, it took the probing
-#: expert from 61 to 67 of 79 tuning targets and from 69 to 71 held out (docs/tasks/coronary.md).
-TIP_FILL = 2.0
 #: Episode limits of the domain. 40 s, not the phantoms' 20 s: the deepest targets lie 154 mm
 #: in, 5 s at the driver's top speed, and each of up to four bifurcations on the way may take a
 #: roll and a retreat; measured on tuning trees 0-19 with the expert, 3 of 76 targets were
@@ -79,13 +74,14 @@ def side_of(seed: int, side: Sides) -> Literal["left", "right"]:
 def scene_for(base: SceneConfig | None) -> SceneConfig:
     """The scene every tree of a pool is compiled with: travel to the deepest target, the
     wire long enough for it, a tip wider than the guide catheter's bore allows
-    (:data:`TIP_FILL`) narrowed to it (the catalogue's coronary tips are kept as shaped), and
-    shaft segments short enough for the tightest bend the generator draws."""
+    (:data:`~sim4endor.models.scene.SOFT_TIP_FILL`) narrowed to it (the catalogue's coronary
+    tips are kept as shaped), and shaft segments short enough for the tightest bend the
+    generator draws."""
     from sim4endor.vessels.generators.coronary_arteries import CoronaryArteriesConfig
 
     scene = with_travel(base or SceneConfig(wire=wires.preset(DEFAULT_WIRE)), MAX_INSERTION)
     generator = CoronaryArteriesConfig()
-    wire = fit_tip(scene.wire, generator.catheter_radius, TIP_FILL,
+    wire = fit_tip(scene.wire, generator.catheter_radius, SOFT_TIP_FILL,
                    where="a coronary tree's guide catheter")
     # The tightest bend: the narrowest lumen at the largest curvature the generator allows
     # (0.75 mm at 2.5 radii, 1.9 mm). A 4.85 mm shaft segment would bow 1.6 mm off the axis
