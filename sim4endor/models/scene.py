@@ -88,8 +88,9 @@ def config_for_vessel(
     where a lumen is narrower, as a real one does, so it keeps the shape given to it unless it
     is wider than :data:`SOFT_TIP_FILL` × (inlet radius − wire radius), as on the ``coronary``
     domain; narrowed to the narrowest lumen, the workhorse's 2 mm/45° tip became 28° and a
-    3 mm/75° one 19° in a 1.5 mm branch, and the probing expert reached fewer targets of
-    generated coronary trees built as vessel folders (docs/tasks/coronary.md, Measured).
+    3 mm/75° one 19° where branches end 1.5 mm across, and the probing expert reached fewer
+    targets of generated coronary trees built as vessel folders (docs/tasks/coronary.md,
+    Measured).
     """
     scene = fit_travel(vessel, base, margin)
     if scene.wire.core_profile is None:
