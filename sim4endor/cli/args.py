@@ -11,6 +11,12 @@ from typing import Any
 from sim4endor.observations import OBSERVATION_SETS
 from sim4endor.rl.config import MAX_SEED, EnvConfig
 
+#: The policy names of the privileged scripted experts (``sim4endor.tasks.expert``), taken by
+#: ``render``, ``view`` and ``evaluate``: the reactive one, and the probing one, the
+#: reachability check of an anatomy.
+EXPERT, PROBING_EXPERT = "expert", "probing-expert"
+EXPERT_POLICIES = (EXPERT, PROBING_EXPERT)
+
 
 def positive_int(text: str) -> int:
     """An integer >= 1 (a count: frames, environments, trials, pixels)."""

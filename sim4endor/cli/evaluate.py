@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from sim4endor import _json as strict_json
 from sim4endor import assets
@@ -11,15 +13,12 @@ from sim4endor.cli import args as arg_types
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.metrics import describe
 
-#: The RUN_OR_POLICY names of the scripted experts (:class:`sim4endor.rl.baselines.
-#: ScriptedExpert`; the names `render` and `view` take): the reactive one, and the probing one,
-#: the reachability check of an anatomy.
-EXPERT, PROBING_EXPERT = "expert", "probing-expert"
-EXPERTS = (EXPERT, PROBING_EXPERT)
+if TYPE_CHECKING:  # imported by the commands that run: it loads torch
+    from sim4endor.rl.generalisation import SuiteConfig
 
 
 def _run_or_policy(spec: str) -> Path | str:
-    return spec if spec in EXPERTS else assets.run_or_policy(spec)
+    return spec if spec in arg_types.EXPERT_POLICIES else assets.run_or_policy(spec)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -78,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     from sim4endor.rl.runs import evaluate_run
 
     torch.set_num_threads(1)  # small networks: one thread is fastest and leaves cores free
-    if args.run_dir in EXPERTS:
+    if args.run_dir in arg_types.EXPERT_POLICIES:
         if args.vessel is None or args.target is not None or args.suite:
             raise Sim4EndoRError(
                 f"RUN_OR_POLICY '{args.run_dir}' runs on every target of a vessel: give "
@@ -108,18 +107,11 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_suite(args: argparse.Namespace) -> int:
     """Runs the generalisation suite and prints its table (or one JSON line)."""
-    import dataclasses
-
     from sim4endor.rl import generalisation
 
-    config = generalisation.SuiteConfig(trees=args.trees, first_seed=args.first_seed,
-                                        trials=args.trials or 1, max_steps=args.max_steps)
-    if args.wire:
-        config = dataclasses.replace(config, wire=args.wire)
-    if args.tip:
-        config = dataclasses.replace(config, tip=args.tip)
-    if args.seed is not None:
-        config = dataclasses.replace(config, seed=args.seed)
+    config = _with_flags(generalisation.SuiteConfig(
+        trees=args.trees, first_seed=args.first_seed, trials=args.trials or 1,
+        max_steps=args.max_steps), args)
     if args.steve is not None:
         config = dataclasses.replace(config, steve_dir=args.steve)
     result = generalisation.evaluate_suite(
@@ -135,21 +127,12 @@ def _run_suite(args: argparse.Namespace) -> int:
 def _run_vessel(args: argparse.Namespace) -> int:
     """Every target of ``--vessel`` (``--trials`` each): the metrics over all of them and per
     target, as a table or one JSON line."""
-    import dataclasses
-
     from sim4endor.rl import generalisation
-
-    config = generalisation.SuiteConfig(trials=args.trials or 1)
-    if args.wire:
-        config = dataclasses.replace(config, wire=args.wire)
-    if args.tip:
-        config = dataclasses.replace(config, tip=args.tip)
-    if args.seed is not None:
-        config = dataclasses.replace(config, seed=args.seed)
     from sim4endor.rl.baselines import ScriptedExpert
 
-    policy = (ScriptedExpert(probing=args.run_dir == PROBING_EXPERT)
-              if args.run_dir in EXPERTS else args.run_dir)
+    config = _with_flags(generalisation.SuiteConfig(trials=args.trials or 1), args)
+    policy = (ScriptedExpert(probing=args.run_dir == arg_types.PROBING_EXPERT)
+              if args.run_dir in arg_types.EXPERT_POLICIES else args.run_dir)
     metrics = generalisation.evaluate_vessel(policy, args.vessel, config,
                                              progress=not args.no_progress)
     if args.json:
@@ -159,3 +142,11 @@ def _run_vessel(args: argparse.Namespace) -> int:
         print(f"{target:<12}  {describe(row)}")  # noqa: T201
     print(f"{'all':<12}  {describe(metrics)}")  # noqa: T201
     return 0
+
+
+def _with_flags(config: SuiteConfig, args: argparse.Namespace) -> SuiteConfig:
+    """``config`` with the ``--wire``, ``--tip`` and ``--seed`` given on the command line."""
+    given = {name: getattr(args, name) for name in ("wire", "tip") if getattr(args, name)}
+    if args.seed is not None:
+        given["seed"] = args.seed
+    return dataclasses.replace(config, **given)

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from sim4endor.suite import NavigationEnvironment
 
 Policy = Callable[[np.ndarray], np.ndarray]
-BUILTIN_POLICIES = ("insert", "random", "expert", "probing-expert")
+BUILTIN_POLICIES = ("insert", "random", *arg_types.EXPERT_POLICIES)
 TARGET_RGBA = np.array([0.1, 0.9, 0.2, 0.8], dtype=np.float32)
 #: The wire overlay of videos and figures: 0.5 mm radius, 3 px across at 640 px per phantom.
 WIRE_RADIUS = 0.5e-3
@@ -64,12 +64,12 @@ def load_policy(spec: str, seed: int, env: NavigationEnvironment | None = None) 
         seed: Seed of the random policy.
         env: The environment the policy acts in (needed by the experts).
     """
-    if spec in ("expert", "probing-expert"):
+    if spec in arg_types.EXPERT_POLICIES:
         if env is None:
             raise PolicyLoadError(f"--policy {spec} needs the environment it acts in.")
         from sim4endor.tasks.expert import CenterlineExpert, ProbingExpert
 
-        expert = ProbingExpert() if spec == "probing-expert" else CenterlineExpert()
+        expert = ProbingExpert() if spec == arg_types.PROBING_EXPERT else CenterlineExpert()
         previous = [math.inf]  # simulated time of the last call
 
         def steer(_obs: np.ndarray) -> np.ndarray:

@@ -81,6 +81,10 @@ class SuiteConfig:
     max_steps: int = 800
     steve_dir: Path | None = DEFAULT_STEVE_DIR
 
+    def base_env(self, observations: str) -> EnvConfig:
+        """The environment every case derives from: ``observations`` and the suite's wire."""
+        return EnvConfig(observations=observations, wire=self.wire, tip=self.tip)
+
 
 @dataclasses.dataclass(frozen=True)
 class Case:
@@ -112,7 +116,7 @@ def tree_cases(first_seed: int, trees: int, base: EnvConfig) -> list[Case]:
 
 def suite_cases(config: SuiteConfig, observations: str) -> list[Case]:
     """The cases of every group for a policy observing ``observations``."""
-    base = EnvConfig(observations=observations, wire=config.wire, tip=config.tip)
+    base = config.base_env(observations)
     cases = tree_cases(config.first_seed, config.trees, base)
     cases += [Case("phantoms", f"{phantom} {task}",
                    dataclasses.replace(base, domain=phantom, task=task))
@@ -210,7 +214,7 @@ def best_constant_action(config: SuiteConfig, observations: str, envs: CaseEnvir
     four trees (seeds from :data:`SELECTION_FIRST_SEED`) and the phantoms' targets, started
     from :data:`baselines.SELECTION_SEED`: cases and starts apart from the reported ones."""
     selection = dataclasses.replace(config, seed=baselines.SELECTION_SEED, trials=1)
-    base = EnvConfig(observations=observations, wire=config.wire, tip=config.tip)
+    base = config.base_env(observations)
     cases = [Case("phantoms", f"{phantom} {task}",
                   dataclasses.replace(base, domain=phantom, task=task))
              for phantom in PHANTOMS for task in PHANTOM_TASKS]
