@@ -43,8 +43,8 @@ def test_the_same_seed_gives_the_same_tree_and_another_seed_another() -> None:
 
 def test_named_arteries_and_distal_targets() -> None:
     assert sorted(coronary_arteries(LEFT, 0).targets) == ["D1", "D2", "LAD_distal", "LCX_distal",
-                                                          "OM1"]
-    assert sorted(coronary_arteries(RIGHT, 1).targets) == ["AM", "PDA", "PLB"]
+                                                          "OM1", "OM2"]
+    assert sorted(coronary_arteries(RIGHT, 1).targets) == ["AM", "PDA", "PLB", "RV"]
 
 
 @pytest.mark.parametrize("config", [LEFT, RIGHT], ids=["left", "right"])
@@ -133,7 +133,10 @@ def test_a_tight_bend_fits_in_its_arterys_drawn_length(side: str) -> None:
         # Centerline nodes every 0.5 mm: a branch's first node sits at its parent's end.
         assert np.linalg.norm(steps, axis=1).sum() == pytest.approx(drawn, abs=1e-3), name
         tangents = steps / np.linalg.norm(steps, axis=1, keepdims=True)
-        turn = np.degrees(np.arccos(np.clip((tangents[:-24] * tangents[24:]).sum(1), -1, 1)))
+        # Over the axis length a 90° bend takes on the widest radius drawn (0.5 mm a node).
+        radius = graph.radii[np.asarray(graph.branch) == index].max()
+        span = math.ceil(math.pi / 2 * config.tight_bend_radius[1] * radius / 0.5e-3) + 1
+        turn = np.degrees(np.arccos(np.clip((tangents[:-span] * tangents[span:]).sum(1), -1, 1)))
         if turn.max() >= 90.0:
             bent.append(name)
     assert ("LM" not in bent) if side == "left" else (root in bent)
@@ -142,9 +145,9 @@ def test_a_tight_bend_fits_in_its_arterys_drawn_length(side: str) -> None:
 
 #: Branches that run over the heart's surface beside their parent (epicardial), and branches
 #: that continue their parent's course, by side.
-EPICARDIAL = {"left": ("LAD_proximal", "LCX_proximal", "D1", "D2", "OM1"),
-              "right": ("AM", "PDA", "PLB")}
-CONTINUATIONS = {"left": ("LAD_mid", "LAD_distal", "LCX_distal"),
+EPICARDIAL = {"left": ("LAD_proximal", "LCX_proximal", "D1", "D2", "OM1", "OM2"),
+              "right": ("RV", "AM", "PDA", "PLB")}
+CONTINUATIONS = {"left": ("LAD_mid", "LAD_distal", "LCX_mid", "LCX_distal"),
                  "right": ("RCA_mid", "RCA_distal")}
 
 
@@ -169,14 +172,21 @@ def test_side_branches_leave_along_the_hearts_surface(side: str) -> None:
             tangent = (end - parent[-2]) / np.linalg.norm(end - parent[-2])
             chord = end - parent[-9]  # the parent's last 4 mm: its turn points against it
             heart = tangent * (chord @ tangent) - chord
+            if np.linalg.norm(heart) < 1e-6:
+                continue  # a straight parent (its turn drawn at 0): no side is the heart's
             heart /= np.linalg.norm(heart)
             leaving = child[3] - end
             leaving -= tangent * (leaving @ tangent)
             into_heart.setdefault(name, []).append(
                 float(leaving @ heart / np.linalg.norm(leaving)))
+    # One branch's twelve values spread over about +-0.9 (its roll's 30° SD on top of its
+    # parent's), so its mean is known to about +-0.15: a branch drawn into the heart or off it
+    # (roll 0 or 180°) reads about +-0.85, one on the surface within +-0.5; all of a side's
+    # surface branches together within +-0.2.
     for name in EPICARDIAL[side]:
-        assert abs(np.mean(into_heart[name])) < 0.3, name
+        assert abs(np.mean(into_heart[name])) < 0.5, name
         assert np.mean(np.abs(into_heart[name])) < 0.6, name
+    assert abs(np.mean([v for name in EPICARDIAL[side] for v in into_heart[name]])) < 0.2
     for name in CONTINUATIONS[side]:
         assert np.mean(into_heart[name]) > 0.7, name
 
@@ -202,7 +212,7 @@ def test_the_coronary_domain_builds_a_tree_and_steps(tmp_path: Path) -> None:
                                               "cache_dir": tmp_path})
     timestep = env.reset()
     assert env.task.anatomy.vessel.name == "right_coronary_00001"
-    assert env.task.target in ("AM", "PDA", "PLB")
+    assert env.task.target in ("RV", "AM", "PDA", "PLB")
     # The domain's own episode limit (40 s: 152 mm paths through up to four bifurcations).
     assert env.task.config.termination == coronary.TERMINATION
     assert env._step_limit == pytest.approx(coronary.TERMINATION.time_limit / 0.05)
