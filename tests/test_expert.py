@@ -187,8 +187,8 @@ def test_an_aim_offset_rolls_the_tip_away_from_the_path_turn() -> None:
     assert compared >= 3
 
 
-def _side_branch_env(random: int, tree: int = 300, target: str = "D1") -> control.Environment:
-    """A tuning tree's diagonal (a sideways branch; by default tree 300's first), with the
+def _side_branch_env(random: int, tree: int = 300, target: str = "OM1") -> control.Environment:
+    """A tuning tree's sideways branch (by default tree 300's first obtuse marginal), with the
     2 mm, 75 degree tip the reachability check uses, from start roll ``random``."""
     wire = {"preset": "workhorse", "tip": {"length": 2e-3, "angle": math.radians(75.0)}}
     return suite.load("coronary", "navigate", {"pool_seed": tree, "pool_size": 1, "wire": wire,
@@ -197,7 +197,7 @@ def _side_branch_env(random: int, tree: int = 300, target: str = "D1") -> contro
 
 def test_the_pull_back_entry_passes_the_ostium_turns_the_tip_and_draws_the_wire_back() -> None:
     # Start roll 0: the tip passes the ostium pointing away from the branch, so the entry has
-    # to turn it (from roll 300 it already points at the branch and the turn is skipped).
+    # to turn it (on the same tree's diagonals it enters at once and never leaves "advance").
     env = _side_branch_env(random=0)
     env.reset()
     entry = PullBackEntry(ExpertConfig())
@@ -228,12 +228,13 @@ def test_the_pull_back_entry_passes_the_ostium_turns_the_tip_and_draws_the_wire_
 @pytest.mark.slow
 def test_the_pull_back_entry_brings_the_wire_into_a_sideways_branch_the_plain_expert_misses(
 ) -> None:
-    """About 30 s: the plain expert times out; the entry, then the plain expert, reaches the
-    second diagonal of tuning tree 302. (Since the workhorse's hydrophilic coat and elliptic
-    cones, tree 300's D1 is missed both ways; trees 300 D1 from rolls 1 and 2, 304 D1 and
-    402 OM1 are missed both ways, 302 D1 reached both ways.)"""
-    assert not run_expert(_side_branch_env(0, 302, "D2"), CenterlineExpert())["is_success"]
-    env = _side_branch_env(0, 302, "D2")
+    """About 15 s: the plain expert misses tuning tree 308's first obtuse marginal; the
+    entry, then the plain expert, reaches it. (Since the generator's second obtuse marginal and
+    right ventricular branch, 2026-11-27, this replaces tree 302's second diagonal. Tried on
+    tuning trees 300-304, 306 and 308: tree 302's OM2, 304's D1, OM1 and OM2, 308's D2, 301's
+    RV and 303's AM are missed both ways.)"""
+    assert not run_expert(_side_branch_env(0, 308, "OM1"), CenterlineExpert())["is_success"]
+    env = _side_branch_env(0, 308, "OM1")
     timestep = env.reset()
     entry = PullBackEntry(ExpertConfig())
     while not timestep.last():

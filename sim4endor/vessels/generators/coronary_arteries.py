@@ -2,8 +2,9 @@
 
 Unlike :func:`~sim4endor.vessels.generators.coronary.coronary_tree` (a generic random tree),
 this generator follows the named arteries of ``coronary_arteries.toml``: left main → LAD
-(proximal, mid, distal) with two diagonals and LCX (proximal, distal) with an obtuse marginal;
-or the RCA (proximal, mid, distal) with the acute marginal, PDA and posterolateral branch. Each
+(proximal, mid, distal) with two diagonals and LCX (proximal, mid, distal) with two obtuse
+marginals; or the RCA (proximal, mid, distal) with a right ventricular branch, the acute
+marginal, PDA and posterolateral branch. Each
 segment's start diameter is drawn from its published mean ± SD (quantitative angiography of
 normal arteries); a bifurcating segment tapers to the end diameter Finet's law gives for its
 children (``D_parent = 0.678 (D_1 + D_2)``). Lengths, bifurcation angles and the heart's
