@@ -73,6 +73,15 @@ def test_calibres_follow_the_literature_and_finets_law(config: CoronaryArteriesC
                                                         abs=0.05), name
 
 
+def test_a_main_vessel_is_never_cut_short() -> None:
+    # Right seed 3005's first draw finds no room for the distal RCA: leaving it out ended the RCA
+    # in a kink into the acute marginal. The seed's next draw is taken instead; side branches
+    # may still be left out (left seed 25's OM2).
+    right = coronary_arteries(RIGHT, 3005).centerline.branch_names
+    assert {"RCA_distal", "PDA", "PLB"} <= set(right)
+    assert "OM2" not in coronary_arteries(LEFT, 25).targets
+
+
 def test_the_wire_starts_in_a_7f_guide_catheter_that_widens_into_the_ostium() -> None:
     tree = coronary_arteries(LEFT, 0)
     graph = tree.centerline
