@@ -123,9 +123,9 @@ class CoronaryArteriesConfig:
         inlet_keep_out: Radius around the axis behind the inlet (the driver's sheath) that
             branches keep out of (m), in addition to ``clearance``.
         attempts: Redraws of a segment that does not fit before it is left out (with its
-            children; a parent left with no child ends in a target). A main vessel's
-            continuation (the first child listed) is never left out: the whole tree is
-            drawn again instead.
+            children; a parent left with no child ends in a target). A main vessel (a
+            parent's first child listed, its continuation, or a segment with children of its
+            own) is never left out: the whole tree is drawn again instead.
         resolution: Mesh and centerline sampling.
     """
 
@@ -245,13 +245,17 @@ def _generate(config: CoronaryArteriesConfig, seed: int, rng: np.random.Generato
     )]
     index_of = {root.spec.name: 0}
     children: dict[str, int] = {}
-    continuations = {s.spec.parent: s.spec.name for s in reversed(drawn[1:])}  # first child
+    # The main vessels: each parent's first child (its continuation) and every segment with
+    # branches of its own (the LCX off the left main).
+    main = {s.spec.parent for s in drawn} | {
+        next(s.spec.name for s in drawn if s.spec.parent == parent)
+        for parent in {s.spec.parent for s in drawn[1:]}}
     for segment in drawn[1:]:
         parent = index_of.get(segment.spec.parent)
         if parent is None:
             continue  # its parent was left out
         plan = _place(plans, parent, segment, config, rng)
-        if plan is None and continuations[segment.spec.parent] == segment.spec.name:
+        if plan is None and segment.spec.name in main:
             raise _TrunkCut(f"{segment.spec.name} found no room in {config.attempts} draws")
         if plan is not None:
             index_of[segment.spec.name] = len(plans)
