@@ -245,11 +245,12 @@ def _generate(config: CoronaryArteriesConfig, seed: int, rng: np.random.Generato
     )]
     index_of = {root.spec.name: 0}
     children: dict[str, int] = {}
-    # The main vessels: each parent's first child (its continuation) and every segment with
-    # branches of its own (the LCX off the left main).
-    main = {s.spec.parent for s in drawn} | {
-        next(s.spec.name for s in drawn if s.spec.parent == parent)
-        for parent in {s.spec.parent for s in drawn[1:]}}
+    # The main vessels: every segment with branches of its own (the LCX off the left main) and
+    # each one's first child listed, its continuation.
+    continuation: dict[str, str] = {}
+    for segment in drawn[1:]:
+        continuation.setdefault(segment.spec.parent, segment.spec.name)
+    main = set(continuation) | set(continuation.values())
     for segment in drawn[1:]:
         parent = index_of.get(segment.spec.parent)
         if parent is None:
