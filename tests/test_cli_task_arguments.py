@@ -100,7 +100,7 @@ def test_a_tip_shape_reaches_the_task_and_a_bad_one_is_refused_by_name(
         EnvConfig(wire="workhorse", tip="3,95")
     out = tmp_path / "run"
     for tip, message in (("3x75", "LENGTH_MM,ANGLE_DEG (e.g. 3,75) or J, got '3x75'"),
-                         ("5,60", "length must be 1-3 mm")):
+                         ("6,60", "length must be 1-5 mm")):
         with pytest.raises(SystemExit) as exited:  # argparse's own refusal
             main(["train", "sac", "--wire", "workhorse", "--tip", tip, "--out", str(out)])
         err = capsys.readouterr().err

@@ -256,7 +256,8 @@ def test_a_tip_shaped_wider_than_the_catheter_starts_straight_and_takes_its_shap
     assert env.task.step_info()["failure"] == ""
 
 
-def test_the_coronary_scene_keeps_tips_that_span_the_guide_bore_and_narrows_wider_ones() -> None:
+def test_the_coronary_scene_keeps_tips_shaped_for_the_proximal_arteries_and_narrows_wider_ones(
+        ) -> None:
     scene = coronary.scene_for(None)
     workhorse = wires.preset("workhorse")
     assert scene.wire.core_profile == workhorse.core_profile
@@ -265,7 +266,11 @@ def test_the_coronary_scene_keeps_tips_that_span_the_guide_bore_and_narrows_wide
     room = SOFT_TIP_FILL * (CoronaryArteriesConfig().catheter_radius - workhorse.radius)
     paper = wires.preset("paper")  # 5 mm, 35 degrees: 1.48 mm wide, within the 7F bore
     assert coronary.scene_for(SceneConfig(wire=paper)).wire.tip_angle == paper.tip_angle
-    wide = dataclasses.replace(workhorse, tip_length=3.5e-3, tip_angle=math.radians(75.0))
+    # 5 mm at 60 degrees (2.39 mm), shaped for a side branch of a wide proximal RCA, is kept;
+    # 5 mm at 90 degrees (3.18 mm) is wider than the cap (2.55 mm for the 7F bore).
+    shaped = dataclasses.replace(workhorse, tip_length=5e-3, tip_angle=math.radians(60.0))
+    assert coronary.scene_for(SceneConfig(wire=shaped)).wire.tip_angle == shaped.tip_angle
+    wide = dataclasses.replace(workhorse, tip_length=5e-3, tip_angle=math.radians(90.0))
     narrowed = coronary.scene_for(SceneConfig(wire=wide)).wire
     assert narrowed.tip_angle < wide.tip_angle
     assert room - 1e-5 < narrowed.tip_lateral_offset <= room + 1e-9

@@ -111,14 +111,14 @@ def test_tip_shapes_and_their_errors() -> None:
     j_tip = wires.preset("intermediate", tip="J")
     assert j_tip.tip_angle == pytest.approx(wires.J_ANGLE)
     with pytest.raises(wires.WireCatalogueError, match=r"TipShape\.length"):
-        wires.TipShape(0.005, math.radians(45))
+        wires.TipShape(0.006, math.radians(45))
     with pytest.raises(wires.WireCatalogueError, match=r"TipShape\.angle"):
         wires.TipShape.degrees(2.0, 120.0)
     with pytest.raises(wires.WireCatalogueError, match="'S'"):
         wires.preset("workhorse", tip="S")
     # config_for_vessel narrows the paper wire's stiff tip to the narrowest lumen; a soft
-    # (tapered-core) tip only to twice the inlet's room, which a J (2.16 mm) fits in the 2 mm
-    # phantom, as it does on the coronary domain.
+    # (tapered-core) tip only to three times the inlet's room, which a J (2.16 mm) fits in the
+    # 2 mm phantom, as it does on the coronary domain.
     vessel = vessels.load("simplified_phantom")
     stiff_j = config_for_vessel(vessel, SceneConfig(wire=wires.preset("paper", tip="J"))).wire
     assert stiff_j.tip_angle < wires.J_ANGLE
@@ -130,7 +130,7 @@ def test_tip_shapes_as_written_on_a_command_line() -> None:
     assert wires.parse_tip(" j ") == "J"
     for text, message in (("3x75", r"LENGTH_MM,ANGLE_DEG \(e\.g\. 3,75\) or J, got '3x75'"),
                           ("3,75,1", "got '3,75,1'"),
-                          ("0.5,60", r"'0\.5,60': the shaped length must be 1-3 mm"),
+                          ("0.5,60", r"'0\.5,60': the shaped length must be 1-5 mm"),
                           ("2,nan", "and the angle 30-90 deg")):
         with pytest.raises(wires.WireCatalogueError, match=message):
             wires.parse_tip(text)

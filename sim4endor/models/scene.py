@@ -37,18 +37,20 @@ from sim4endor.vessels import CENTERLINE_FILE, Vessel
 from sim4endor.vessels.manifest import MANIFEST_FILE
 
 #: How wide a tapered-core wire's pre-bent tip may be, in (inlet bore radius − wire radius),
-#: where the wire starts (a coronary tree's guide catheter): 2 lets the tip reach across the
-#: bore (shaft on one wall, tip end at the other), 1.70 mm for the 7F guide and a 0.014 in wire,
-#: as a cardiologist shapes a tip to the proximal vessel's calibre; a 1 gf tip bends where a
-#: distal lumen is narrower. The phantoms' 0.85 of the narrowest lumen (made for the paper
-#: wire's stiff 118 gf tip) cut the workhorse's 2 mm/45° tip to 28°, 0.49 mm off the shaft's
-#: axis in a 4.5 mm left main, where the tip then rarely caught the branch the path takes: 46 of
-#: 76 coronary tuning targets (trees 0-19) reached with 28°, 54 with the preset's 45°. Until
-#: 2026-11-26 the coronary room was that of the smallest lumen drawn (1.5 mm), which capped every
-#: tip at 1.14 mm: a 3 mm tip at 75° became 3 mm at 46°. Let through, it took the probing expert
-#: from 61 to 67 of 79 tuning targets and from 69 to 71 held out (docs/tasks/coronary.md). Since
-#: 2026-11-27 vessel folders wired with such a wire take the same rule (:func:`config_for_vessel`).
-SOFT_TIP_FILL = 2.0
+#: where the wire starts (a coronary tree's guide catheter). A soft tip starts straight in the
+#: bore and takes its shape outside, so the bore does not bound the shape; a cardiologist sizes
+#: the curve to the vessel proximal to the target ("roughly the length of the diameter", the
+#: 1–5 mm of :data:`~sim4endor.models.wires.SHAPE_LENGTH_RANGE`). 3 lets a tip reach 2.55 mm
+#: sideways from the 7F guide with a 0.014 in wire, about two thirds of a 3.9 mm proximal RCA:
+#: a 5 mm tip at 60° (2.39 mm) keeps its shape, and took the probing expert into 5 of the 11
+#: side branches of the tuning trees it missed with 3 mm at 75° (docs/tasks/coronary.md,
+#: 2026-11-27, late night). A 1 gf tip bends where a distal lumen is narrower. Until then the
+#: cap was 2 (1.70 mm: the bore's width); before 2026-11-26 the coronary room was that of the
+#: smallest lumen drawn (1.5 mm), which held every tip to 1.14 mm, and the phantoms' 0.85 of the
+#: narrowest lumen (made for the paper wire's stiff 118 gf tip) cut the workhorse's 2 mm/45° tip
+#: to 28° (46 of 76 coronary tuning targets reached instead of 54). Vessel folders wired with
+#: such a wire take the same rule (:func:`config_for_vessel`).
+SOFT_TIP_FILL = 3.0
 
 
 class SceneError(Sim4EndoRError, ValueError):

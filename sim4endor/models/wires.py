@@ -35,8 +35,11 @@ from sim4endor.models.guidewire import INCH, GuidewireConfig
 
 #: The preset that reproduces the paper (``GuidewireConfig()``).
 PAPER = "paper"
-#: Shape lengths a cardiologist bends into a coronary tip (m).
-SHAPE_LENGTH_RANGE = (0.001, 0.003)
+#: Shape lengths a cardiologist bends into a coronary tip (m): "a curve at the tip of the
+#: guidewire which is roughly the length of the diameter of the vessel proximal to the lesion"
+#: (C. M. Gibson, "Guidewire general techniques", Wikidoc), so up to about 5 mm for side branches
+#: of a 3.5-4.5 mm proximal RCA, LAD or left main; 1-2 mm for narrow distal vessels and CTOs.
+SHAPE_LENGTH_RANGE = (0.001, 0.005)
 #: Shape angles of an angled tip (rad).
 SHAPE_ANGLE_RANGE = (math.radians(30.0), math.radians(90.0))
 #: The "J": a 3 mm arc curled through 150°, the tip pointing back at the shaft's side.
@@ -76,7 +79,7 @@ class TipShape:
     """The shape a cardiologist bends into the wire's tip: a circular arc.
 
     Attributes:
-        length: Shaped length of the tip (m), 1–3 mm.
+        length: Shaped length of the tip (m), 1–5 mm.
         angle: Total bend over that length (rad), 30–90°.
     """
 
