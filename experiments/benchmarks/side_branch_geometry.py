@@ -34,6 +34,7 @@ import numpy as np
 
 from sim4endor import suite
 from sim4endor.tasks.navigation import INLET_LABEL
+from sim4endor.tasks.tip_frame import PathToTarget
 from sim4endor.vessels.centerline import CenterlineGraph
 
 #: Where the diameters and directions are read (m): upstream of the junction, into the branch.
@@ -59,22 +60,20 @@ class Junction:
 
 
 def path_to(graph: CenterlineGraph, target: str) -> list[int]:
-    """The centerline nodes from the inlet to ``target``, each step to the neighbour nearest
-    the target."""
-    dist = graph.geodesic_from(graph.labels[target])
-    neighbours = graph.neighbours()
-    node = graph.labels[INLET_LABEL]
-    path = [node]
-    while closer := [n for n in neighbours[node] if dist[n] < dist[node]]:
-        node = min(closer, key=lambda n: dist[n])
-        path.append(node)
+    """The centerline nodes from the inlet to ``target`` (the route the ``path_ahead``
+    observation follows)."""
+    next_node = PathToTarget.to_node(graph, graph.labels[target]).next_node
+    path = [graph.labels[INLET_LABEL]]
+    while next_node[path[-1]] >= 0:
+        path.append(int(next_node[path[-1]]))
     return path
 
 
-def walk(graph: CenterlineGraph, start: int, first: int, length: float) -> int:
+def walk(graph: CenterlineGraph, neighbours: list[list[int]], start: int, first: int,
+         length: float) -> int:
     """The node ``length`` (m) along the vessel from ``start`` through its neighbour ``first``
-    (the vessel's last node if it ends or forks before)."""
-    neighbours = graph.neighbours()
+    (the vessel's last node if it ends or forks before); ``neighbours`` is
+    ``graph.neighbours()``."""
     previous, node, travelled = start, first, 0.0
     while True:
         travelled += float(np.linalg.norm(graph.nodes[node] - graph.nodes[previous]))
@@ -94,8 +93,9 @@ def junction(graph: CenterlineGraph, target: str) -> Junction | None:
         return None
     at = forks[-1]
     fork, into = path[at], path[at + 1]
-    daughters = [n for n in graph.neighbours()[fork] if n != path[at - 1]]
-    widths = {n: float(graph.radii[walk(graph, fork, n, INTO)]) for n in daughters}
+    neighbours = graph.neighbours()
+    daughters = [n for n in neighbours[fork] if n != path[at - 1]]
+    widths = {n: float(graph.radii[walk(graph, neighbours, fork, n, INTO)]) for n in daughters}
     if widths[into] >= max(widths.values()):
         return None
     along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(
