@@ -2,8 +2,9 @@
 
 It does what an interventionist does at a bifurcation: roll the wire until the bent tip points
 into the branch the path takes, then push; back off when the wire went the wrong way or the
-tip presses hard on the wall. It reads privileged state (the wire's shape and the centerline
-graph), so it is not an RL baseline on the paper's observation; it is
+tip presses hard on the wall, and try again at another aim. It reads privileged state (the
+wire's shape and the centerline graph), so it is not an RL baseline on the paper's
+observation; it is
 
 - the **reachability check** of an anatomy: a target the expert cannot reach with the wire is
   a defect of the geometry, not a hard task (``tests/test_expert.py`` runs it on the shipped
@@ -80,6 +81,13 @@ class ExpertConfig:
             the body axis).
         roll_offset_deg: Aim the tip's bend this far (about the body axis) from the path's
             turn; 0 aims at the turn. :class:`ProbingExpert` tries several.
+        retry_offsets_deg: After each retreat from a wrong branch, and after ``retry_steps``
+            control steps that bring the tip no closer to the target, aim with the next of
+            these offsets (added to ``roll_offset_deg``, cyclically), as a hand that failed
+            to enter a branch tries again at another angle: the same aim meets the same
+            ostium the same wrong way (docs/tasks/coronary.md). Empty: always the same aim.
+        retry_steps: Control steps without a new closest approach that count as a failed
+            attempt.
     """
 
     lookahead: float = 0.006
@@ -95,6 +103,8 @@ class ExpertConfig:
     stall: float = 0.002
     tip_length: float | None = None
     roll_offset_deg: float = 0.0
+    retry_offsets_deg: tuple[float, ...] = (0.0, 45.0, -45.0, 90.0, -90.0, 180.0)
+    retry_steps: int = 60
 
 
 class CenterlineExpert:
@@ -109,9 +119,12 @@ class CenterlineExpert:
         self.reset()
 
     def reset(self) -> None:
-        """Forgets the episode (best distance, retraction under way)."""
+        """Forgets the episode (best distance, retraction under way, failed attempts)."""
         self._best = math.inf
         self._backing_off = 0
+        self._attempt = 0
+        self._attempt_best = math.inf
+        self._attempt_steps = 0
 
     def __call__(self, physics: GuidewirePhysics, task: NavigationTask) -> FloatArray:
         """Returns the action ``[insert, rotate]`` in [-1, 1] for the current state."""
@@ -138,8 +151,15 @@ class CenterlineExpert:
             # The tip went down a branch off the path: pull it back above the bifurcation.
             self._backing_off = cfg.back_off_steps - 1
             self._best = d
+            self._attempt, self._attempt_steps = self._attempt + 1, 0
             return np.array([-1.0, 0.0])
         self._best = min(self._best, d)
+        if d < self._attempt_best:
+            self._attempt_best, self._attempt_steps = d, 0
+        else:
+            self._attempt_steps += 1
+            if self._attempt_steps >= cfg.retry_steps:
+                self._attempt, self._attempt_steps = self._attempt + 1, 0
 
         force = physics.tip_contact_force()
         path = _unit(self._path_ahead(distance, self._adjacency(anatomy), proj))
@@ -148,8 +168,11 @@ class CenterlineExpert:
         rotate = 0.0
         if np.linalg.norm(turn) >= cfg.straight and np.linalg.norm(bend) > 1e-9:
             phi = self._roll_angle(body, bend, turn)
-            if cfg.roll_offset_deg:
-                phi = _wrap(phi - math.radians(cfg.roll_offset_deg))
+            offset = cfg.roll_offset_deg
+            if cfg.retry_offsets_deg:
+                offset += cfg.retry_offsets_deg[self._attempt % len(cfg.retry_offsets_deg)]
+            if offset:
+                phi = _wrap(phi - math.radians(offset))
             rotate = float(np.clip(phi / max_rotation_step, -1.0, 1.0))
             aligned = abs(math.degrees(phi)) < cfg.tolerance_deg
         stalled = physics.driver_targets()[0] - physics.insertion_depth() > cfg.stall
@@ -250,8 +273,8 @@ class ProbingExpert(CenterlineExpert):
     """:class:`CenterlineExpert` with lookahead, for reachability checks.
 
     Entering a side branch depends on where the tip's bend points at the moment it meets the
-    ostium, and the tip's roll lags and whips behind the carriage's, so the plain expert can
-    meet the same ostium the same wrong way on every retry (docs/tasks/coronary.md). When it
+    ostium, and the tip's roll lags and whips behind the carriage's, so the plain expert's
+    next aim after a failed attempt is a guess (docs/tasks/coronary.md). When it
     is stuck (it has just backed off from a wrong branch, or ``probe.stall_steps`` steps
     brought the tip no closer), this expert simulates each aim of ``probe.roll_offsets_deg`` for
     ``probe.horizon`` steps on a copy of the physics and the task, and then replays the
