@@ -342,3 +342,36 @@ def test_a_scripted_expert_on_every_target_of_a_vessel_folder(
     for extra in ([], ["--vessel", vessel, "--target", "A"]):
         status, _, err = _cli(["evaluate", expert, *extra, "--trials", "1"], capsys)
         assert status == 2 and f"'{expert}' runs on every target" in err
+
+
+def test_the_suite_and_a_vessel_run_a_policy_with_the_tip_it_was_trained_with(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A run trained with ``--tip 5,60`` meets that tip in ``evaluate RUN --suite`` and
+    ``--vessel`` unless ``--tip`` names another; an expert row keeps the preset's."""
+    from sim4endor.rl import baselines, generalisation
+    from sim4endor.rl.config import save_config
+
+    run = tmp_path / "run"
+    run.mkdir()
+    save_config(apply_overrides(default_config("sac"), [
+        "env.domain=coronary", "env.task=navigate", "env.observations=generalist",
+        "env.wire=workhorse", "env.tip=5,60"]), run / "config.yaml")
+    tips: list[str | None] = []
+
+    def fake_run_cases(cases: list[generalisation.Case], *args: object,
+                       **kwargs: object) -> dict[str, list[object]]:
+        tips.extend(case.env.tip for case in cases)
+        return {case.label: [] for case in cases}
+
+    monkeypatch.setattr(generalisation, "run_cases", fake_run_cases)
+    monkeypatch.setattr(generalisation, "summarize", lambda episodes: {"success_rate": 0.0})
+    vessel = vessels.load("simplified_phantom").root
+    config = generalisation.SuiteConfig(trees=1, steve_dir=None)
+    generalisation.evaluate_suite(run, config, with_baselines=False)
+    generalisation.evaluate_vessel(run, vessel, config)
+    assert tips and set(tips) == {"5,60"}
+    tips.clear()
+    generalisation.evaluate_vessel(run, vessel, generalisation.SuiteConfig(tip="3,75"))
+    generalisation.evaluate_vessel(baselines.ScriptedExpert(), vessel, config)
+    assert tips == ["3,75", "3,75", None, None]

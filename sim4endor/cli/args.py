@@ -72,7 +72,8 @@ def add_task_arguments(parser: argparse.ArgumentParser, *, evaluation_split: boo
     group.add_argument("--tip", type=tip_shape, metavar="LENGTH_MM,ANGLE_DEG|J",
                        help="shape the --wire preset's tip as a cardiologist does: the distal "
                             "1-5 mm bent through 30-90 deg (e.g. 3,75), or J (default: the "
-                            "preset's shape)")
+                            "tip a given run or policy was trained with, else the preset's "
+                            "shape)")
     group.add_argument("--pool-seed", type=seed, metavar="SEED",
                        help="generated trees: seed of the first training tree")
     group.add_argument("--pool-size", type=positive_int, metavar="N",

@@ -62,8 +62,10 @@ class SuiteConfig:
         trees: Generated coronary trees of the ``held_out_trees`` group.
         first_seed: Seed of the first of them.
         wire: Guidewire preset of every case.
-        tip: Its tip shape (``EnvConfig.tip``: ``"LENGTH_MM,ANGLE_DEG"`` or ``"J"``;
-            ``None``: the preset's).
+        tip: Its tip shape (``EnvConfig.tip``: ``"LENGTH_MM,ANGLE_DEG"`` or ``"J"``).
+            ``None``: the shape the evaluated run was trained with (:meth:`for_run`; the
+            preset's own when the run named none), so a policy meets the tip whose response
+            to a roll it learnt; the reference rows use the same wire.
         trials: Episodes per case.
         seed: Start-state seed of every case's episodes.
         max_steps: Step cap per episode (the coronary domain's 40 s at 20 Hz; the tasks'
@@ -80,6 +82,10 @@ class SuiteConfig:
     seed: int = baselines.REPORT_SEED
     max_steps: int = 800
     steve_dir: Path | None = DEFAULT_STEVE_DIR
+
+    def for_run(self, run_env: EnvConfig) -> SuiteConfig:
+        """This config with the run's tip shape where it names none."""
+        return self if self.tip is not None else dataclasses.replace(self, tip=run_env.tip)
 
     def base_env(self, observations: str) -> EnvConfig:
         """The environment every case derives from: ``observations`` and the suite's wire."""
@@ -260,6 +266,7 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
     from sim4endor.rl.runs import run_config
 
     train_config = run_config(run_dir)
+    config = config.for_run(train_config.env)
     cases = suite_cases(config, train_config.env.observations)
     envs = CaseEnvironments()
     try:
@@ -289,16 +296,17 @@ def evaluate_vessel(policy: Path | baselines.Baseline, vessel: str | Path, confi
     from sim4endor.rl.runs import evaluation_env, run_config
 
     loaded = vessels.load(vessel)
-    fields: dict[str, Any] = {"domain": "vessel", "task": "navigate",
-                              "vessel": str(loaded.root), "wire": config.wire,
-                              "tip": config.tip}
     make_actor: ActorFactory
     if isinstance(policy, baselines.Baseline):
-        base = EnvConfig(**fields)  # a reference row reads no observation
+        run_env = EnvConfig()  # a reference row reads no observation
         make_actor = functools.partial(_baseline_actor, policy)
     else:
-        base = evaluation_env(run_config(policy).env, fields)
+        run_env = run_config(policy).env
         make_actor = run_actor(policy)
+    config = config.for_run(run_env)
+    base = evaluation_env(run_env, {"domain": "vessel", "task": "navigate",
+                                    "vessel": str(loaded.root), "wire": config.wire,
+                                    "tip": config.tip})
     cases = [Case("vessel", target, dataclasses.replace(base, target=target))
              for target in sorted(loaded.targets)]
     envs = CaseEnvironments()
