@@ -60,6 +60,20 @@ OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
         "wall_force",
         "last_action",
     ),
+    # The generalist set without the calibre. Every coronary episode starts in the guide's
+    # bore (1.03 mm), a phantom episode in its own 2.0-2.4 mm tube; a policy trained on the
+    # coronary starts can read a wide lumen at the start as a cue to pull back (seed 2 of
+    # 2026-11-28 reached 0/12 phantom episodes, 8/12 with the entry read as the bore's:
+    # docs/results/generalisation). ``axis_offset`` still gives the wall's nearness in radii.
+    "generalist_no_radius": (
+        "path_ahead",
+        "axis_offset",
+        "tip_velocity_local",
+        "manifold_distance",
+        "tip_force",
+        "wall_force",
+        "last_action",
+    ),
 }
 
 #: Unit and size of each observation entry (``wire_shape`` is 3 per wire vertex).

@@ -35,6 +35,14 @@ def test_generalist_set_replaces_the_paper_state(stepped_env):
     assert timestep.observation["path_ahead"].shape == (3 * PATH_POINTS,)
 
 
+def test_set_without_radius_is_the_generalist_set_less_the_calibre():
+    env = suite.load("simplified_phantom", "task_a",
+                     {"random": 3, "observations": "generalist_no_radius"})
+    observation = env.reset().observation
+    assert tuple(observation) == tuple(name for name in GENERALIST if name != "lumen_radius")
+    assert set(env.observation_spec()) == set(observation)
+
+
 def test_generalist_observation_is_unchanged_by_moving_the_anatomy_with_the_wire(stepped_env):
     """Same wire state, anatomy and wire rotated and translated together: same observation."""
     env, timestep = stepped_env
