@@ -37,9 +37,9 @@ def test_experiment_config_files_match_the_library_defaults(algorithm: str) -> N
 
 def test_the_generalist_config_trains_across_held_out_coronary_trees() -> None:
     config = load_config(EXPERIMENTS / "generalist" / "config.yaml")
-    assert (config.env.domain, config.env.observations) == ("coronary", "generalist")
+    assert (config.env.domain, config.env.observations) == ("coronary", "generalist_no_radius")
     assert config.env.eval_pool_seed >= config.env.pool_seed + config.env.pool_size  # held out
-    assert len(config.observation_scale()) == 36  # one default factor per generalist number
+    assert len(config.observation_scale()) == 35  # one default factor per number of the set
 
 
 def test_overrides_parse_values_as_yaml() -> None:

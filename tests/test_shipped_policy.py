@@ -4,12 +4,13 @@ acting on an anatomy it was not trained on."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from sim4endor import assets
 from sim4endor.cli import render
 from sim4endor.rl.checkpoint import CHECKPOINT_DIR, STATE_FILE
-from sim4endor.rl.runs import run_config
+from sim4endor.rl.runs import evaluation_env, run_config
 
 
 def test_the_generalist_is_shipped_small_and_loads_weights_only() -> None:
@@ -19,15 +20,16 @@ def test_the_generalist_is_shipped_small_and_loads_weights_only() -> None:
     assert state.stat().st_size < 5 * 2**20  # a few MB at most
     assert not (folder / CHECKPOINT_DIR / "replay.pt").exists()
     torch.load(state, weights_only=True)  # tensors and plain data only: no pickled code
-    assert run_config(folder).env.observations == "generalist"
+    assert run_config(folder).env.observations == "generalist_no_radius"
     assert (folder / "MODEL_CARD.md").is_file()
 
 
 def test_the_generalist_acts_on_a_phantom_it_never_saw() -> None:
     from sim4endor import suite
 
-    env = suite.load("simplified_phantom", "task_a",
-                     {"observations": "generalist", "wire": "workhorse", "random": 0})
+    run_env = run_config(assets.run_or_policy("generalist")).env
+    phantom = evaluation_env(run_env, {"domain": "simplified_phantom", "task": "task_a"})
+    env = suite.load(phantom.domain, phantom.task, phantom.task_kwargs(0))
     policy = render.load_policy("generalist", 0, env)
     timestep = env.reset()
     for _ in range(3):
@@ -35,3 +37,26 @@ def test_the_generalist_acts_on_a_phantom_it_never_saw() -> None:
         assert action.shape == (2,) and np.all(np.abs(action) <= 1.0)
         timestep = env.step(action)
     assert env.task.step_info()["insertion_command"] > 0
+
+
+def test_the_generalist_exports_with_its_shaped_tip_in_the_contract(tmp_path) -> None:
+    """policy.json names the wire as plain data the catalogue rebuilds: 5 mm bent 60 deg."""
+    import json
+    import math
+
+    from sim4endor.models import wires
+    from sim4endor.rl.envs import env_factory
+    from sim4endor.rl.export import export_policy
+
+    folder = assets.run_or_policy("generalist")
+    # A phantom's specs size the networks as well as a coronary tree's, without building one.
+    phantom = evaluation_env(run_config(folder).env,
+                             {"domain": "simplified_phantom", "task": "task_a"})
+    paths = export_policy(folder, tmp_path, make_env=env_factory(phantom, evaluation=True))
+    assert [path.name for path in paths] == ["policy.pt", "policy.json"]
+    contract = json.loads(paths[1].read_text())
+    wire = wires.resolve(contract["environment"]["task_kwargs"]["wire"])
+    assert wire.tip_length == pytest.approx(0.005)
+    assert wire.tip_angle == pytest.approx(math.radians(60.0))
+    assert contract["observation"]["shape"][-1] == 35
+

@@ -167,7 +167,11 @@ class EnvConfig:
         if self.tip is not None:
             from sim4endor.models.wires import parse_tip
 
-            wire = {"preset": self.wire, "tip": parse_tip(self.tip)}
+            # Plain data ({"length": m, "angle": rad} or "J"), as the wire catalogue takes it:
+            # these arguments are also written into an exported policy's policy.json.
+            tip = parse_tip(self.tip)
+            wire = {"preset": self.wire,
+                    "tip": tip if isinstance(tip, str) else dataclasses.asdict(tip)}
         given = {"vessel": self.vessel, "target": self.target, "wire": wire,
                  "pool_seed": pool_seed, "pool_size": self.pool_size}
         kwargs.update({key: value for key, value in given.items() if value is not None})

@@ -132,6 +132,8 @@ def export_agent(
     policy = deterministic_policy(config, agent)
     obs_dim = next(policy.body.parameters()).shape[-1]  # type: ignore[union-attr]
     example = torch.zeros(1, obs_dim)
+    # The contract first: a run it cannot describe leaves no policy.pt without its policy.json.
+    contract = json.dumps(policy_contract(config, obs_dim), indent=2) + "\n"
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     with torch.no_grad():
@@ -140,9 +142,8 @@ def export_agent(
     tmp = script_path.with_name(".policy.pt.tmp")
     scripted.save(str(tmp))
     tmp.replace(script_path)
-    contract = policy_contract(config, obs_dim)
     paths = [script_path, out_dir / CONTRACT_FILE]
-    atomic_write_text(paths[1], json.dumps(contract, indent=2) + "\n")
+    atomic_write_text(paths[1], contract)
     if onnx:
         paths.append(_export_onnx(policy, example, out_dir / ONNX_FILE))
     return paths
