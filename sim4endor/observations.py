@@ -44,36 +44,30 @@ OPTIONAL_OBSERVATIONS: tuple[str, ...] = (
     "tip_force",
     "wall_force",
 )
+#: What the tip sees in its own frame (:mod:`sim4endor.tasks.tip_frame`) plus scalars: it does
+#: not change when the anatomy is rotated or translated with the wire, so nothing in it names
+#: one patient's coordinates.
+_GENERALIST: tuple[str, ...] = (
+    "path_ahead",
+    "axis_offset",
+    "lumen_radius",
+    "tip_velocity_local",
+    "manifold_distance",
+    "tip_force",
+    "wall_force",
+    "last_action",
+)
 #: Named observation sets (``task_kwargs={"observations": "generalist"}``), each used as it
-#: is, without the defaults. ``generalist`` is what the tip sees in its own frame
-#: (:mod:`sim4endor.tasks.tip_frame`) plus scalars: it does not change when the anatomy is
-#: rotated or translated with the wire, so nothing in it names one patient's coordinates.
+#: is, without the defaults.
 OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     "paper": DEFAULT_OBSERVATIONS,
-    "generalist": (
-        "path_ahead",
-        "axis_offset",
-        "lumen_radius",
-        "tip_velocity_local",
-        "manifold_distance",
-        "tip_force",
-        "wall_force",
-        "last_action",
-    ),
+    "generalist": _GENERALIST,
     # The generalist set without the calibre. Every coronary episode starts in the guide's
     # bore (1.03 mm), a phantom episode in its own 2.0-2.4 mm tube; a policy trained on the
     # coronary starts can read a wide lumen at the start as a cue to pull back (seed 2 of
     # 2026-11-28 reached 0/12 phantom episodes, 8/12 with the entry read as the bore's:
     # docs/results/generalisation). ``axis_offset`` still gives the wall's nearness in radii.
-    "generalist_no_radius": (
-        "path_ahead",
-        "axis_offset",
-        "tip_velocity_local",
-        "manifold_distance",
-        "tip_force",
-        "wall_force",
-        "last_action",
-    ),
+    "generalist_no_radius": tuple(name for name in _GENERALIST if name != "lumen_radius"),
 }
 
 #: Unit and size of each observation entry (``wire_shape`` is 3 per wire vertex).

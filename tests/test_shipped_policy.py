@@ -10,6 +10,7 @@ import torch
 from sim4endor import assets
 from sim4endor.cli import render
 from sim4endor.rl.checkpoint import CHECKPOINT_DIR, STATE_FILE
+from sim4endor.rl.config import EnvConfig
 from sim4endor.rl.runs import evaluation_env, run_config
 
 
@@ -24,11 +25,16 @@ def test_the_generalist_is_shipped_small_and_loads_weights_only() -> None:
     assert (folder / "MODEL_CARD.md").is_file()
 
 
+def _phantom() -> EnvConfig:
+    """The simplified phantom's task A with the shipped policy's observations, wire and tip."""
+    run_env = run_config(assets.run_or_policy("generalist")).env
+    return evaluation_env(run_env, {"domain": "simplified_phantom", "task": "task_a"})
+
+
 def test_the_generalist_acts_on_a_phantom_it_never_saw() -> None:
     from sim4endor import suite
 
-    run_env = run_config(assets.run_or_policy("generalist")).env
-    phantom = evaluation_env(run_env, {"domain": "simplified_phantom", "task": "task_a"})
+    phantom = _phantom()
     env = suite.load(phantom.domain, phantom.task, phantom.task_kwargs(0))
     policy = render.load_policy("generalist", 0, env)
     timestep = env.reset()
@@ -48,15 +54,12 @@ def test_the_generalist_exports_with_its_shaped_tip_in_the_contract(tmp_path) ->
     from sim4endor.rl.envs import env_factory
     from sim4endor.rl.export import export_policy
 
-    folder = assets.run_or_policy("generalist")
     # A phantom's specs size the networks as well as a coronary tree's, without building one.
-    phantom = evaluation_env(run_config(folder).env,
-                             {"domain": "simplified_phantom", "task": "task_a"})
-    paths = export_policy(folder, tmp_path, make_env=env_factory(phantom, evaluation=True))
+    paths = export_policy(assets.run_or_policy("generalist"), tmp_path,
+                          make_env=env_factory(_phantom(), evaluation=True))
     assert [path.name for path in paths] == ["policy.pt", "policy.json"]
     contract = json.loads(paths[1].read_text())
     wire = wires.resolve(contract["environment"]["task_kwargs"]["wire"])
     assert wire.tip_length == pytest.approx(0.005)
     assert wire.tip_angle == pytest.approx(math.radians(60.0))
     assert contract["observation"]["shape"][-1] == 35
-
