@@ -78,6 +78,8 @@ class GuidewirePhysics(dm_mujoco.Physics):
     """
 
     legacy_step = False
+    #: (data.time after the last :meth:`step` call, the tip's mean wall force over it).
+    _tip_force_mean: tuple[float, float] = (math.nan, 0.0)
 
     @classmethod
     def from_vessel(
@@ -224,14 +226,47 @@ class GuidewirePhysics(dm_mujoco.Physics):
         return self._contact_sensor_total(self._indices().wall_sensors, 0)
 
     def tip_contact_force(self) -> float:
-        """Normal force of the pre-bent tip's segments on the vessel wall (N).
+        """Normal force of the pre-bent tip's segments on the vessel wall now (N).
 
-        The task's safety signal: the tip is what can perforate a vessel, while the shaft of a
-        wire lying in tortuous vessels presses on every bend (measured on the vascular
-        phantom: over 2.5 N in total on the shaft for about 0.4 N on the tip).
+        The tip is what can perforate a vessel, while the shaft of a wire lying in tortuous
+        vessels presses on every bend (measured on the vascular phantom: over 2.5 N in total
+        on the shaft for about 0.4 N on the tip). The task's safety signal is this force's
+        mean over a control step (:meth:`mean_tip_contact_force`).
         """
         indices = self._indices()
         return self._contact_sensor_total((indices.tip_sensor,), indices.tip_start)
+
+    def step(self, nstep: int = 1) -> None:
+        """Advances ``nstep`` physics steps and keeps the tip's mean wall force over them
+        (:meth:`mean_tip_contact_force`)."""
+        if nstep < 1:  # e.g. a settle time shorter than one step: nothing to advance
+            return
+        total = 0.0
+        if self.legacy_step:
+            for _ in range(nstep):
+                super().step()
+                total += self.tip_contact_force()
+        else:
+            # One state check for all steps, as dm_control's own step(nstep) does.
+            model, data = self.model.ptr, self.data.ptr
+            with self.check_invalid_state():
+                for _ in range(nstep):
+                    mujoco.mj_step(model, data)
+                    total += self.tip_contact_force()
+        self._tip_force_mean = (float(self.data.time), total / nstep)
+
+    def mean_tip_contact_force(self) -> float:
+        """Mean of :meth:`tip_contact_force` over the physics steps of the last :meth:`step`
+        call (a task's control step), N; the force now when the state has changed since.
+
+        The quasi-static force, the one to compare with a puncture force measured by a slow
+        push. The instantaneous force of a mass-scaled wire (``GuidewireConfig.mass_scale``)
+        is not: where the tip strikes the wall, MuJoCo's soft contact stops the scaled mass
+        within a few milliseconds, and the force of that stop grows with the mass
+        (docs/guidewire.md, "Inertia honesty").
+        """
+        time, mean = self._tip_force_mean
+        return mean if time == float(self.data.time) else self.tip_contact_force()
 
     def _contact_sensor_total(self, addresses: tuple[int, ...], first_index: int) -> float:
         """Sums wall contact sensors: the wall force on the wire from its body

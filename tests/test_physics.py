@@ -91,6 +91,27 @@ def test_pushing_into_the_capped_end_gives_wall_force_and_no_escape(tube: Vessel
     assert np.all(physics.wall_contact_forces() >= 0.0)
 
 
+def test_the_mean_tip_force_is_the_mean_over_the_last_step_call(tube: Vessel) -> None:
+    """The task's quasi-static safety signal: the tip force averaged over a control step's
+    physics steps, not the force at its end (docs/guidewire.md, "Inertia honesty")."""
+    one, each = GuidewirePhysics.from_vessel(tube), GuidewirePhysics.from_vessel(tube)
+    for physics in (one, each):
+        _drive(physics, 0.07, 0.3, 3.0)  # the tip pressed on the cap
+    forces = []
+    for _ in range(40):
+        one.step(10)
+        steps = []
+        for _ in range(10):
+            each.step()
+            steps.append(each.tip_contact_force())
+        forces.append((one.mean_tip_contact_force(), float(np.mean(steps))))
+    means = np.array(forces)
+    np.testing.assert_allclose(means[:, 0], means[:, 1], rtol=1e-12, atol=1e-15)
+    assert means[:, 0].max() > 0.0
+    one.reset()  # a changed state: the force now, not a stale mean
+    assert one.mean_tip_contact_force() == one.tip_contact_force() == 0.0
+
+
 def test_legacy_stepping_reports_the_same_contact_force(tube: Vessel) -> None:
     # The pushed tip chatters on the cap (the total force swings between ~0 and ~1.3 N from
     # one 5 ms step to the next in both modes), so compare the mean over 0.5 s.

@@ -110,6 +110,30 @@ def test_failure_states_terminate_with_the_penalty(
     assert last.reward == pytest.approx(-100.0 + info["reward_distance"])
 
 
+@pytest.mark.parametrize("mean", [False, True])
+def test_the_tip_force_is_the_step_mean_where_the_termination_says(
+        mean: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With ``tip_force_mean`` (the coronary limits) an impact spike at the step's end does
+    not end the episode; the mean over the step is the failure's, the info's and the
+    observation's tip force. The paper's tasks keep the force at the step's end."""
+    termination = TerminationConfig(tip_force_mean=mean)
+    env = suite.load("simplified_phantom", "task_a",
+                     {"termination": termination, "observations": ("tip_force",), "random": 0})
+    env.reset()
+    physics = type(env.physics)
+    monkeypatch.setattr(physics, "tip_contact_force", lambda self: 2.0)  # > 1 N: a spike
+    monkeypatch.setattr(physics, "mean_tip_contact_force", lambda self: 0.1)
+    last = env.step(INSERT)
+    info = env.task.step_info()
+    assert info["tip_force"] == last.observation["tip_force"][0] == (0.1 if mean else 2.0)
+    assert info["failure"] == ("" if mean else "tip_force")
+
+
+def test_the_coronary_limits_compare_the_mean_tip_force() -> None:
+    assert suite.load("coronary", "navigate", {"pool_size": 1}).task.config.termination \
+        .tip_force_mean
+
+
 def test_a_failure_on_the_step_that_reaches_the_target_is_not_a_success() -> None:
     # Every tip is "at the target" (success within 1 m) and the first roll breaks the rotation
     # limit: the failure wins, as a tip pressing the wall past the limit at the target is harm.

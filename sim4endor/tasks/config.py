@@ -58,10 +58,13 @@ class TerminationConfig:
     each ending the episode with the -100 penalty and discount 0:
 
     * ``tip_force``: normal force of the pre-bent tip's segments on the vessel wall above
-      ``max_tip_force`` (N). The tip is what can perforate a vessel; the shaft of a wire in a
-      tortuous vessel presses on every bend without harm (on the vascular phantom a straight
-      insertion puts over 2.5 N in total on the wall for about 0.4 N at the tip), so the
-      total wall force is reported (``wall_force``) but does not end the episode;
+      ``max_tip_force`` (N); with ``tip_force_mean`` its mean over the control step, the
+      quasi-static force as a puncture force is measured, not the mass-scaled wire's impact
+      transient (:meth:`~sim4endor.physics.GuidewirePhysics.mean_tip_contact_force`). The
+      tip is what can perforate a vessel; the shaft of a wire in a tortuous vessel presses on
+      every bend without harm (on the vascular phantom a straight insertion puts over 2.5 N
+      in total on the wall for about 0.4 N at the tip), so the total wall force is reported
+      (``wall_force``) but does not end the episode;
     * ``outside_lumen``: the tip further than ``lumen_margin`` (m) outside the lumen, i.e.
       its distance from the centerline graph exceeds the local radius by that much;
     * ``insertion_limit``: the commanded insertion beyond ``max_insertion`` (m; default: the
@@ -86,6 +89,9 @@ class TerminationConfig:
         max_rotation: Largest |commanded rotation| (rad) before the episode fails; ``None``
             uses the driver's rotation range.
         max_push_force: Largest insertion force of the driver (N) before the episode fails.
+        tip_force_mean: The tip force (failure, step info and ``tip_force`` observation) is
+            its mean over the control step; ``False``: the force at the step's end, as the
+            paper's tasks were published.
     """
 
     time_limit: float = 20.0
@@ -94,6 +100,7 @@ class TerminationConfig:
     max_insertion: float | None = None
     max_rotation: float | None = None
     max_push_force: float = 1.0
+    tip_force_mean: bool = False
 
     def __post_init__(self) -> None:
         require(self, "TerminationConfig", TaskConfigError,

@@ -69,7 +69,8 @@ class StepEvaluation:
         distance: Reward-metric distance from the tip to the target (m).
         manifold_distance: Geodesic distance along the centerline graph (m), for reporting.
         wall_force: Total normal wire–wall contact force (N), for reporting.
-        tip_force: Normal force of the tip section on the wall (N), the safety signal.
+        tip_force: Normal force of the tip section on the wall (N), the safety signal
+            (``TerminationConfig.tip_force_mean``).
         lumen_excess: Distance of the tip outside the lumen (m; <= 0 inside).
         tip_position: The tip (m, vessel frame), for metrics whatever the observation holds.
         success: Whether the tip reached the target.
@@ -317,7 +318,7 @@ class NavigationTask(base.Task):
                 else self._distance(self.config.reward.metric)(tip)
             )
             force = physics.wall_contact_force()
-            tip_force = physics.tip_contact_force()
+            tip_force = self._tip_force(physics)
             excess = lumen_excess(self._anatomy, tip, proj)
             push = physics.insertion_force()
         checks = {
@@ -337,6 +338,12 @@ class NavigationTask(base.Task):
         return StepEvaluation(
             distance, manifold, force, tip_force, excess, tip, success, failure, terms
         )
+
+    def _tip_force(self, physics: control.Physics) -> float:
+        """The tip's wall force as the task's termination config defines it (N)."""
+        if self.config.termination.tip_force_mean:
+            return physics.mean_tip_contact_force()
+        return physics.tip_contact_force()
 
     def get_reward(self, physics: control.Physics) -> float:
         """Returns the sum of this step's reward terms."""
@@ -435,7 +442,7 @@ class NavigationTask(base.Task):
         if name == "pixels":
             return self._fluoroscopy(physics)
         if name == "tip_force":
-            return np.array([min(physics.tip_contact_force(), FORCE_HORIZON)])
+            return np.array([min(self._tip_force(physics), FORCE_HORIZON)])
         if name == "wall_force":
             return np.array([min(physics.wall_contact_force(), FORCE_HORIZON)])
         assert view is not None  # get_observation computes it for these entries
