@@ -241,18 +241,23 @@ class GuidewirePhysics(dm_mujoco.Physics):
         (:meth:`mean_tip_contact_force`)."""
         if nstep < 1:  # e.g. a settle time shorter than one step: nothing to advance
             return
+        indices = self._indices()
         total = 0.0
+        # In either stepping mode the sensors then hold the state each step started from, so
+        # the mean covers the same states in both and costs no recomputation of the forces.
         if self.legacy_step:
             for _ in range(nstep):
                 super().step()
-                total += self.tip_contact_force()
+                total += self._contact_sensor_total((indices.tip_sensor,), indices.tip_start,
+                                                    sensed=True)
         else:
             # One state check for all steps, as dm_control's own step(nstep) does.
             model, data = self.model.ptr, self.data.ptr
             with self.check_invalid_state():
                 for _ in range(nstep):
                     mujoco.mj_step(model, data)
-                    total += self.tip_contact_force()
+                    total += self._contact_sensor_total((indices.tip_sensor,),
+                                                        indices.tip_start)
         self._tip_force_mean = (float(self.data.time), total / nstep)
 
     def mean_tip_contact_force(self) -> float:
@@ -268,10 +273,12 @@ class GuidewirePhysics(dm_mujoco.Physics):
         time, mean = self._tip_force_mean
         return mean if time == float(self.data.time) else self.tip_contact_force()
 
-    def _contact_sensor_total(self, addresses: tuple[int, ...], first_index: int) -> float:
+    def _contact_sensor_total(self, addresses: tuple[int, ...], first_index: int,
+                              sensed: bool = False) -> float:
         """Sums wall contact sensors: the wall force on the wire from its body
-        ``first_index`` (0: proximal) on."""
-        if not self.legacy_step:
+        ``first_index`` (0: proximal) on. ``sensed``: what the sensors hold even with legacy
+        stepping (the state the last physics step started from, as without it)."""
+        if sensed or not self.legacy_step:
             # Filled by mj_step for the same contacts and forces that _wall_contacts() reads:
             # slots of [count, normal, tangent, tangent].
             total = 0.0

@@ -94,19 +94,23 @@ def test_pushing_into_the_capped_end_gives_wall_force_and_no_escape(tube: Vessel
 def test_the_mean_tip_force_is_the_mean_over_the_last_step_call(tube: Vessel) -> None:
     """The task's quasi-static safety signal: the tip force averaged over a control step's
     physics steps, not the force at its end (docs/guidewire.md, "Inertia honesty")."""
-    one, each = GuidewirePhysics.from_vessel(tube), GuidewirePhysics.from_vessel(tube)
-    for physics in (one, each):
+    one, each, legacy = (GuidewirePhysics.from_vessel(tube) for _ in range(3))
+    legacy.legacy_step = True  # the same states, so the same means
+    for physics in (one, each, legacy):
         _drive(physics, 0.07, 0.3, 3.0)  # the tip pressed on the cap
     forces = []
     for _ in range(40):
         one.step(10)
+        legacy.step(10)
         steps = []
         for _ in range(10):
             each.step()
             steps.append(each.tip_contact_force())
-        forces.append((one.mean_tip_contact_force(), float(np.mean(steps))))
+        forces.append((one.mean_tip_contact_force(), float(np.mean(steps)),
+                       legacy.mean_tip_contact_force()))
     means = np.array(forces)
     np.testing.assert_allclose(means[:, 0], means[:, 1], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(means[:, 0], means[:, 2], rtol=1e-12, atol=1e-15)
     assert means[:, 0].max() > 0.0
     one.reset()  # a changed state: the force now, not a stale mean
     assert one.mean_tip_contact_force() == one.tip_contact_force() == 0.0
