@@ -128,6 +128,9 @@ def test_tip_shapes_and_their_errors() -> None:
 def test_tip_shapes_as_written_on_a_command_line() -> None:
     assert wires.parse_tip("3,75") == wires.TipShape.degrees(3.0, 75.0)
     assert wires.parse_tip(" j ") == "J"
+    # The same text shapes a wire in task_kwargs, as --tip does on the command line.
+    written = wires.resolve({"preset": "workhorse", "tip": "5,60"})
+    assert written == wires.preset("workhorse", tip=wires.TipShape.degrees(5.0, 60.0))
     for text, message in (("3x75", r"LENGTH_MM,ANGLE_DEG \(e\.g\. 3,75\) or J, got '3x75'"),
                           ("3,75,1", "got '3,75,1'"),
                           ("0.5,60", r"'0\.5,60': the shaped length must be 1-5 mm"),

@@ -212,20 +212,20 @@ def entry(name: str) -> WireEntry:
 
 
 def shaped(wire: GuidewireConfig, tip: TipShape | str) -> GuidewireConfig:
-    """Returns ``wire`` with its tip shaped: a :class:`TipShape` or ``"J"``.
+    """Returns ``wire`` with its tip shaped: a :class:`TipShape`, ``"J"``, or the command
+    line's text ``"LENGTH_MM,ANGLE_DEG"`` (:func:`parse_tip`).
 
     Raises:
-        WireCatalogueError: For a string other than ``"J"``.
+        WireCatalogueError: For text :func:`parse_tip` rejects, or anything else.
     """
     if isinstance(tip, str):
-        if tip.upper() != "J":
-            raise WireCatalogueError(
-                f"tip must be a TipShape(length m, angle rad) or 'J', got {tip!r}."
-            )
+        tip = parse_tip(tip)
+    if tip == "J":
         return dataclasses.replace(wire, tip_length=J_LENGTH, tip_angle=J_ANGLE)
     if not isinstance(tip, TipShape):
         raise WireCatalogueError(
-            f"tip must be a TipShape(length m, angle rad) or 'J', got {tip!r}."
+            f"tip must be a TipShape(length m, angle rad), 'J' or 'LENGTH_MM,ANGLE_DEG', "
+            f"got {tip!r}."
         )
     return dataclasses.replace(wire, tip_length=tip.length, tip_angle=tip.angle)
 
@@ -274,8 +274,8 @@ def resolve(wire: str | GuidewireConfig | Mapping[str, Any] | None) -> Guidewire
 
     A mapping holds :class:`GuidewireConfig` fields, optionally with ``"preset"`` (the base,
     default ``paper``), ``"coating"`` (a name of :func:`coatings`: sets ``friction``, so
-    not both) and ``"tip"`` (a :class:`TipShape`, ``"J"``, or ``{"length":, "angle":}`` in
-    m and rad). ``None`` gives ``paper``.
+    not both) and ``"tip"`` (a :class:`TipShape`, ``"J"``, the command line's ``"5,60"``
+    in mm and degrees, or ``{"length":, "angle":}`` in m and rad). ``None`` gives ``paper``.
 
     Raises:
         WireCatalogueError: For an unknown preset, field, coating or tip, or a coating and a
