@@ -8,6 +8,7 @@ at bifurcation 1), and no amount of training would show it as anything but a low
 from __future__ import annotations
 
 import collections
+import dataclasses
 import math
 
 import numpy as np
@@ -16,6 +17,7 @@ from dm_control.rl import control
 
 from sim4endor import suite
 from sim4endor.tasks.expert import (
+    FIXED_AIM,
     CenterlineExpert,
     ExpertConfig,
     ProbeConfig,
@@ -132,7 +134,8 @@ def test_a_stuck_probing_expert_follows_the_best_aim_of_its_probe() -> None:
     assert expert._probes == 1
     substeps = env.task.config.action.physics_steps(env.physics.timestep())
     plans = [lookahead(env.physics, env.task,
-                        CenterlineExpert(ExpertConfig(roll_offset_deg=offset)), substeps, 25)
+                        CenterlineExpert(dataclasses.replace(FIXED_AIM, roll_offset_deg=offset)),
+                        substeps, 25)
              for offset in (0.0, 90.0)]
     best = min(plans, key=lambda plan: (not plan[0], plan[1]))
     np.testing.assert_array_equal(first, best[2][0])
@@ -140,9 +143,9 @@ def test_a_stuck_probing_expert_follows_the_best_aim_of_its_probe() -> None:
     for expected in best[2][1:]:
         np.testing.assert_array_equal(expert(env.physics, env.task), expected)
         env.step(expected)
-    # Once its one probe is spent it steers as the plain expert does.
+    # Once its one probe is spent it steers as the plain expert with a fixed aim does.
     expert._plan.clear()
-    plain = CenterlineExpert()
+    plain = CenterlineExpert(FIXED_AIM)
     plain._best, plain._backing_off = expert._best, expert._backing_off
     np.testing.assert_array_equal(expert(env.physics, env.task), plain(env.physics, env.task))
 
@@ -171,11 +174,12 @@ def test_the_screen_replaces_a_step_that_would_fail_by_the_first_safe_fallback()
 def test_an_aim_offset_rolls_the_tip_away_from_the_path_turn() -> None:
     """ExpertConfig.roll_offset_deg: 0 (the default) leaves the plain expert's actions bit
     for bit; aimed 180 degrees off, the expert holds the insertion where the plain one,
-    aligned, pushes, and rolls the other way."""
+    aligned, pushes, and rolls the other way (both with one fixed aim, no sweep)."""
     env = suite.load("vascular_phantom", "task_b", {"random": 0})
     env.reset()
-    plain, zero = CenterlineExpert(), CenterlineExpert(ExpertConfig(roll_offset_deg=0.0))
-    flipped = CenterlineExpert(ExpertConfig(roll_offset_deg=180.0))
+    plain = CenterlineExpert(FIXED_AIM)
+    zero = CenterlineExpert(dataclasses.replace(FIXED_AIM, roll_offset_deg=0.0))
+    flipped = CenterlineExpert(dataclasses.replace(FIXED_AIM, roll_offset_deg=180.0))
     compared = 0
     for _ in range(30):
         action = plain(env.physics, env.task)
@@ -194,8 +198,9 @@ def test_an_expert_that_makes_no_progress_tries_the_next_aim() -> None:
     off here) takes over."""
     env = suite.load("vascular_phantom", "task_b", {"random": 0})
     env.reset()
-    plain = CenterlineExpert(ExpertConfig(retry_offsets_deg=()))
-    flipped = CenterlineExpert(ExpertConfig(retry_offsets_deg=(), roll_offset_deg=180.0))
+    plain = CenterlineExpert(ExpertConfig(retry_offsets_deg=(), sweep_deg=0.0))
+    flipped = CenterlineExpert(ExpertConfig(retry_offsets_deg=(), roll_offset_deg=180.0,
+                                            sweep_deg=0.0))
     for _ in range(30):
         action = plain(env.physics, env.task)
         if action[0] > 0.0 and action[1] != 0.0:  # aligned with the turn and rolling
@@ -203,11 +208,45 @@ def test_an_expert_that_makes_no_progress_tries_the_next_aim() -> None:
         env.step(action)
     else:
         pytest.fail("the expert never rolled while aligned in 30 steps")
-    retrying = CenterlineExpert(ExpertConfig(retry_offsets_deg=(0.0, 180.0), retry_steps=2))
+    retrying = CenterlineExpert(ExpertConfig(retry_offsets_deg=(0.0, 180.0), retry_steps=2,
+                                             sweep_deg=0.0))
     first, second, third = (retrying(env.physics, env.task) for _ in range(3))
     np.testing.assert_array_equal(first, action)
     np.testing.assert_array_equal(second, action)
     np.testing.assert_array_equal(third, flipped(env.physics, env.task))
+
+
+def test_the_sweep_moves_the_aim_with_the_episode_time() -> None:
+    """ExpertConfig.sweep_deg: on one state, where the fixed aim is met and the expert pushes,
+    the sweeping expert acts as the fixed one where the sweep crosses zero, and a twelfth of
+    the period after it or before its next zero rolls at full rate towards an aim 30 degrees
+    off either way, still pushing: within ``sweep_deg`` of its moving aim it counts as
+    aligned (a fixed aim 30 degrees off would not, beyond ``tolerance_deg``)."""
+    env = suite.load("vascular_phantom", "task_b", {"random": 0})
+    env.reset()
+    fixed = CenterlineExpert(dataclasses.replace(FIXED_AIM, retry_offsets_deg=()))
+    for _ in range(40):
+        action = fixed(env.physics, env.task)
+        if action[0] > 0.0 and 0.0 < abs(action[1]) < 1.0:  # aimed within one step's roll
+            break
+        env.step(action)
+    else:
+        pytest.fail("the expert never met its aim in 40 steps")
+    sweep = ExpertConfig(retry_offsets_deg=(), sweep_deg=60.0, sweep_period=2.0)
+    physics, task = env.physics, env.task
+    actions = {}
+    for phase in (0.0, 1 / 12, 7 / 12):  # of the period: the sweep at 0, +30 and -30 deg
+        physics.data.time = phase * sweep.sweep_period  # the expert reads nothing else of it
+        sweeping = CenterlineExpert(sweep)
+        sweeping._best = fixed._best  # the same episode so far
+        actions[phase] = sweeping(physics, task)
+    np.testing.assert_allclose(actions[0.0], action, atol=1e-9)
+    np.testing.assert_array_equal(actions[1 / 12], [action[0], -1.0])
+    np.testing.assert_array_equal(actions[7 / 12], [action[0], 1.0])
+    off = CenterlineExpert(dataclasses.replace(FIXED_AIM, retry_offsets_deg=(),
+                                               roll_offset_deg=30.0))
+    off._best = fixed._best
+    np.testing.assert_array_equal(off(physics, task), [0.0, -1.0])
 
 
 def _side_branch_env(random: int, tree: int = 300, target: str = "OM1") -> control.Environment:
@@ -256,7 +295,7 @@ def test_the_pull_back_entry_brings_the_wire_into_a_sideways_branch_the_plain_ex
     obtuse marginal and right ventricular branch, 2026-11-27, this replaces tree 302's second
     diagonal. Tried on tuning trees 300-304, 306 and 308: tree 302's OM2, 304's D1, OM1 and
     OM2, 308's D2, 301's RV and 303's AM are missed both ways.)"""
-    one_aim = ExpertConfig(retry_offsets_deg=())
+    one_aim = ExpertConfig(retry_offsets_deg=(), sweep_deg=0.0)
     assert not run_expert(_side_branch_env(0, 308, "OM1"), CenterlineExpert(one_aim))[
         "is_success"]
     env = _side_branch_env(0, 308, "OM1")

@@ -1,10 +1,11 @@
 """A scripted expert that steers the J-tip along the centerline to the task's target.
 
 It does what an interventionist does at a bifurcation: roll the wire until the bent tip points
-into the branch the path takes, then push; back off when the wire went the wrong way or the
-tip presses hard on the wall, and try again at another aim. It reads privileged state (the
-wire's shape and the centerline graph), so it is not an RL baseline on the paper's
-observation; it is
+into the branch the path takes, then push while rotating the wire back and forth about that aim
+(the sweep, so the tip brushes over the ostium at many rolls); back off when the wire went the
+wrong way or the tip presses hard on the wall, and try again at another aim. It reads
+privileged state (the wire's shape and the centerline graph), so it is not an RL baseline on
+the paper's observation; it is
 
 - the **reachability check** of an anatomy: a target the expert cannot reach with the wire is
   a defect of the geometry, not a hard task (``tests/test_expert.py`` runs it on the shipped
@@ -88,6 +89,18 @@ class ExpertConfig:
             ostium the same wrong way (docs/tasks/coronary.md). Empty: always the same aim.
         retry_steps: Control steps without a new closest approach that count as a failed
             attempt.
+        sweep_deg: Where the path turns, sweep the aim this far (deg) to either side of it,
+            sinusoidally, while pushing: the interventionist's back-and-forth rotation of the
+            wire as it advances past a side branch, which lets the bent tip brush over the
+            ostium at many rolls instead of meeting it at one. The tip's roll lags and whips
+            behind the carriage's (docs/guidewire.md), so which fixed aim enters a narrow
+            branch is a guess; the sweep tries them all on the way. While sweeping, the
+            expert pushes whenever the bend is within ``max(tolerance_deg, sweep_deg)`` of
+            the moving aim: the carriage's top roll rate (180 deg/s) trails the sweep's
+            (``2 pi sweep_deg / sweep_period``, 283 deg/s at the defaults). 0: one fixed aim
+            at a time (:data:`FIXED_AIM`). The defaults were chosen on the vessel-folder
+            check trees (docs/tasks/coronary.md, 2026-11-28).
+        sweep_period: Period (s) of the sweep, in episode time.
     """
 
     lookahead: float = 0.006
@@ -105,6 +118,15 @@ class ExpertConfig:
     roll_offset_deg: float = 0.0
     retry_offsets_deg: tuple[float, ...] = (0.0, 45.0, -45.0, 90.0, -90.0, 180.0)
     retry_steps: int = 60
+    sweep_deg: float = 90.0
+    sweep_period: float = 2.0
+
+
+#: The expert without the sweep: one aim at a time. :class:`ProbingExpert` tries its aims so,
+#: one per simulated copy (its probes stand in for the sweep, and its published results were
+#: measured so), and the redirect tasks' starts drive the wire into the other branch with it
+#: (``sim4endor.tasks.starts``; their depths and times were fitted to it).
+FIXED_AIM = ExpertConfig(sweep_deg=0.0)
 
 
 class CenterlineExpert:
@@ -171,10 +193,14 @@ class CenterlineExpert:
             offset = cfg.roll_offset_deg
             if cfg.retry_offsets_deg:
                 offset += cfg.retry_offsets_deg[self._attempt % len(cfg.retry_offsets_deg)]
+            if cfg.sweep_deg:
+                # Keyed on the episode's time, so a copy of the physics sweeps in step.
+                offset += cfg.sweep_deg * math.sin(2 * math.pi * physics.time()
+                                                   / cfg.sweep_period)
             if offset:
                 phi = _wrap(phi - math.radians(offset))
             rotate = float(np.clip(phi / max_rotation_step, -1.0, 1.0))
-            aligned = abs(math.degrees(phi)) < cfg.tolerance_deg
+            aligned = abs(math.degrees(phi)) < max(cfg.tolerance_deg, cfg.sweep_deg)
         stalled = physics.driver_targets()[0] - physics.insertion_depth() > cfg.stall
         if force > cfg.back_force or stalled:
             insert = cfg.back_push
@@ -284,13 +310,15 @@ class ProbingExpert(CenterlineExpert):
 
     It is a planner with a perfect model of the simulation: it answers whether the wire can
     reach a target at all (the reachability check of an anatomy), not how a robot without
-    that model would get there.
+    that model would get there. Its steps and aims hold one aim at a time
+    (:data:`FIXED_AIM`, unless ``config`` says otherwise): the probes try the aims the plain
+    expert's sweep passes through.
     """
 
     def __init__(self, config: ExpertConfig | None = None,
                  probe: ProbeConfig | None = None) -> None:
         self.probe = probe or ProbeConfig()
-        super().__init__(config)
+        super().__init__(config or FIXED_AIM)
 
     def reset(self) -> None:
         """Forgets the episode, its plan and its probes."""

@@ -15,7 +15,7 @@ from sim4endor.physics import GuidewirePhysics
 from sim4endor.rewards import ManifoldDistance
 from sim4endor.tasks.anatomy import Anatomy
 from sim4endor.tasks.config import ActionConfig
-from sim4endor.tasks.expert import CenterlineExpert
+from sim4endor.tasks.expert import FIXED_AIM, CenterlineExpert
 
 #: Control steps the expert may take to get the tip off the path; the phantoms need 30-60.
 MAX_DRIVE_STEPS = 400
@@ -59,7 +59,7 @@ def drive_off_path(
     """
     to_decoy, to_target, to_inlet = distances
     inlet_to_target = float(to_target.node_distances[to_inlet.target_node])
-    expert = CenterlineExpert()
+    expert = CenterlineExpert(FIXED_AIM)
     insertion, rotation = physics.driver_targets()
     for _ in range(MAX_DRIVE_STEPS):
         tip = physics.tip_position()
