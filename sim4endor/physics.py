@@ -17,6 +17,7 @@ Every element is addressed by its name from :mod:`sim4endor.models.constants`.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -242,22 +243,22 @@ class GuidewirePhysics(dm_mujoco.Physics):
         if nstep < 1:  # e.g. a settle time shorter than one step: nothing to advance
             return
         indices = self._indices()
-        total = 0.0
         # In either stepping mode the sensors then hold the state each step started from, so
         # the mean covers the same states in both and costs no recomputation of the forces.
+        sensed_tip_force = functools.partial(self._contact_sensor_total, (indices.tip_sensor,),
+                                             indices.tip_start, sensed=True)
+        total = 0.0
         if self.legacy_step:
             for _ in range(nstep):
                 super().step()
-                total += self._contact_sensor_total((indices.tip_sensor,), indices.tip_start,
-                                                    sensed=True)
+                total += sensed_tip_force()
         else:
             # One state check for all steps, as dm_control's own step(nstep) does.
             model, data = self.model.ptr, self.data.ptr
             with self.check_invalid_state():
                 for _ in range(nstep):
                     mujoco.mj_step(model, data)
-                    total += self._contact_sensor_total((indices.tip_sensor,),
-                                                        indices.tip_start)
+                    total += sensed_tip_force()
         self._tip_force_mean = (float(self.data.time), total / nstep)
 
     def mean_tip_contact_force(self) -> float:
