@@ -198,9 +198,9 @@ def test_an_expert_that_makes_no_progress_tries_the_next_aim() -> None:
     off here) takes over."""
     env = suite.load("vascular_phantom", "task_b", {"random": 0})
     env.reset()
-    plain = CenterlineExpert(ExpertConfig(retry_offsets_deg=(), sweep_deg=0.0))
-    flipped = CenterlineExpert(ExpertConfig(retry_offsets_deg=(), roll_offset_deg=180.0,
-                                            sweep_deg=0.0))
+    plain = CenterlineExpert(dataclasses.replace(FIXED_AIM, retry_offsets_deg=()))
+    flipped = CenterlineExpert(dataclasses.replace(FIXED_AIM, retry_offsets_deg=(),
+                                                   roll_offset_deg=180.0))
     for _ in range(30):
         action = plain(env.physics, env.task)
         if action[0] > 0.0 and action[1] != 0.0:  # aligned with the turn and rolling
@@ -208,8 +208,8 @@ def test_an_expert_that_makes_no_progress_tries_the_next_aim() -> None:
         env.step(action)
     else:
         pytest.fail("the expert never rolled while aligned in 30 steps")
-    retrying = CenterlineExpert(ExpertConfig(retry_offsets_deg=(0.0, 180.0), retry_steps=2,
-                                             sweep_deg=0.0))
+    retrying = CenterlineExpert(dataclasses.replace(FIXED_AIM, retry_offsets_deg=(0.0, 180.0),
+                                                    retry_steps=2))
     first, second, third = (retrying(env.physics, env.task) for _ in range(3))
     np.testing.assert_array_equal(first, action)
     np.testing.assert_array_equal(second, action)
@@ -295,7 +295,7 @@ def test_the_pull_back_entry_brings_the_wire_into_a_sideways_branch_the_plain_ex
     obtuse marginal and right ventricular branch, 2026-11-27, this replaces tree 302's second
     diagonal. Tried on tuning trees 300-304, 306 and 308: tree 302's OM2, 304's D1, OM1 and
     OM2, 308's D2, 301's RV and 303's AM are missed both ways.)"""
-    one_aim = ExpertConfig(retry_offsets_deg=(), sweep_deg=0.0)
+    one_aim = dataclasses.replace(FIXED_AIM, retry_offsets_deg=())
     assert not run_expert(_side_branch_env(0, 308, "OM1"), CenterlineExpert(one_aim))[
         "is_success"]
     env = _side_branch_env(0, 308, "OM1")
