@@ -102,9 +102,33 @@ def test_best_keeps_the_weights_of_the_best_evaluation(tmp_path: Path) -> None:
     assert json.loads((best / "selection.json").read_text()) == expected
     assert checkpoint.load_progress(best).frames == expected["frames"]
     assert not (best / "checkpoint" / "replay.pt").exists()
+    assert not (tmp_path / "evaluated").exists()  # eval.keep_weights is opt-in
     # best/ is a run folder: evaluating it replays the same episodes with the same return.
     again = evaluate_run(best, trials=2, make_env=pendulum_env, record=False)
     assert again["mean_return"] == pytest.approx(expected["mean_return"])
+
+
+def test_keep_weights_keeps_every_evaluated_checkpoint(tmp_path: Path) -> None:
+    train(tiny_config("sac", "eval.keep_weights=true"), tmp_path, make_env=pendulum_env,
+          progress=False)
+    lines = [json.loads(line) for line in (tmp_path / "evaluations.jsonl").read_text().splitlines()]
+    kept = tmp_path / "evaluated"
+    assert sorted(p.name for p in kept.iterdir()) == sorted(str(m["frames"]) for m in lines)
+    for metrics in lines:
+        folder = kept / str(metrics["frames"])
+        assert json.loads((folder / "selection.json").read_text()) == metrics
+        assert checkpoint.load_progress(folder).frames == metrics["frames"]
+        assert not (folder / "checkpoint" / "replay.pt").exists()
+        # Each is a run folder whose weights give back the episodes that judged them.
+        again = evaluate_run(folder, trials=2, make_env=pendulum_env, record=False)
+        assert again["mean_return"] == pytest.approx(metrics["mean_return"])
+    best = json.loads((tmp_path / "best" / "selection.json").read_text())
+    assert (kept / str(best["frames"]) / "selection.json").read_text() == (
+        tmp_path / "best" / "selection.json").read_text()
+    # Keeping weights changes no weights: the run resumes with it turned off.
+    train(tiny_config("sac", "collector.total_frames=300"), tmp_path, make_env=pendulum_env,
+          progress=False)
+    assert sorted(p.name for p in kept.iterdir()) == sorted(str(m["frames"]) for m in lines)
 
 
 def test_a_resumed_run_compares_with_its_earlier_best(tmp_path: Path) -> None:

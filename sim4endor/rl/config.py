@@ -328,11 +328,17 @@ class EvalConfig:
         interval_frames: evaluate every this many collected frames (0 = only at the end).
         trials: episodes per evaluation (paper: 10).
         max_steps: step cap of one evaluation episode (the task's own time limit also applies).
+        keep_weights: also keep the weights of every periodic evaluation in
+            ``RUN_DIR/evaluated/FRAMES/`` (a run folder each, ~3.4 MB for the generalist's
+            networks), not only the best one's: a few evaluation episodes rank checkpoints
+            roughly (20 episodes and 100 disagreed by up to 13 points on the generalist,
+            docs/results/generalisation), so they can be ranked again on more episodes.
     """
 
     interval_frames: int = 10_000
     trials: int = 10
     max_steps: int = 1_000
+    keep_weights: bool = False
 
     def __post_init__(self) -> None:
         _check(self, "eval", positive=("trials", "max_steps"), non_negative=("interval_frames",))

@@ -17,6 +17,8 @@ Run folder layout::
     RUN_DIR/evaluation.json       the final evaluation (what `sim4endor table` reads)
     RUN_DIR/best/                 the weights of the best evaluation so far, itself a run folder
                                   (config.yaml, checkpoint/ without a replay, selection.json)
+    RUN_DIR/evaluated/FRAMES/     with ``eval.keep_weights``: every periodic evaluation's
+                                  weights, laid out as ``best/``
 
 SAC and DDPG runs can end far below their best periodic evaluation, so ``best/`` keeps the
 policy of the best one (most successes, then SPL, then mean return; the first of equals), to
@@ -68,8 +70,11 @@ CONFIG_FILE = "config.yaml"
 EVALUATIONS_FILE = "evaluations.jsonl"
 EVALUATION_FILE = "evaluation.json"
 BEST_DIR = "best"
-#: In ``best/``: the periodic evaluation that chose its weights (what later ones must beat).
+#: In ``best/``: the periodic evaluation that chose its weights (what later ones must beat);
+#: in each ``evaluated/FRAMES/``: the evaluation of those weights.
 SELECTION_FILE = "selection.json"
+#: With ``eval.keep_weights``: one folder per periodic evaluation, named by its frames.
+EVALUATED_DIR = "evaluated"
 #: Offset between the training and evaluation seeds, so evaluation starts are never trained on.
 EVAL_SEED_OFFSET = 10_000
 #: Seed offset of the demonstration environment, apart from the collectors' (seed + frames).
@@ -199,8 +204,9 @@ def _check_resumable(run_dir: Path, config: TrainConfig) -> None:
     if not checkpoint.has_checkpoint(run_dir) or not saved_path.is_file():
         return
     saved = load_config(saved_path)
-    # More frames extend a run; the device is where it happens to run now.
-    ignore = {"total_frames", "device"}
+    # More frames extend a run; the device is where it happens to run now; keeping the
+    # evaluated weights changes no weights.
+    ignore = {"total_frames", "device", "keep_weights"}
     if _without(to_dict(saved), ignore) != _without(to_dict(config), ignore):
         raise RunDirError(
             f"{run_dir} holds a checkpoint of a different configuration ({saved_path}); "
@@ -475,8 +481,19 @@ class _Loop:
         path = self.run_dir / EVALUATIONS_FILE
         previous = path.read_text() if path.is_file() else ""
         atomic_write_text(path, previous + strict_json.dumps(metrics) + "\n")
+        if cfg.eval.keep_weights:
+            self._save_weights(self.run_dir / EVALUATED_DIR / str(state.frames), state, metrics)
         self._keep_if_best(state, metrics)
         return metrics
+
+    def _save_weights(self, folder: Path, state: checkpoint.Progress,
+                      metrics: dict[str, Any]) -> None:
+        """Writes the current weights as a run folder of their own (no replay), with the
+        evaluation ``metrics`` that judged them; replaces ``folder`` atomically."""
+        with atomic_directory(folder) as staging:
+            save_config(self.config, staging / CONFIG_FILE)
+            checkpoint.save_checkpoint(staging, self.agent, state, None)
+            _write_metrics(staging / SELECTION_FILE, metrics)
 
     def _keep_if_best(self, state: checkpoint.Progress, metrics: dict[str, Any]) -> None:
         """Replaces ``best/`` with the current weights if ``metrics`` beat its evaluation."""
@@ -486,10 +503,7 @@ class _Loop:
         saved = best / SELECTION_FILE
         if saved.is_file() and _rank(json.loads(saved.read_text())) >= _rank(metrics):
             return
-        with atomic_directory(best) as staging:
-            save_config(self.config, staging / CONFIG_FILE)
-            checkpoint.save_checkpoint(staging, self.agent, state, None)
-            _write_metrics(staging / SELECTION_FILE, metrics)
+        self._save_weights(best, state, metrics)
         _LOG.info("%s: the best evaluation so far; its weights are in %s", self.run_dir.name, best)
 
     def final_evaluation(self, state: checkpoint.Progress) -> dict[str, Any]:
