@@ -266,11 +266,13 @@ def test_the_coronary_scene_keeps_tips_shaped_for_the_proximal_arteries_and_narr
     room = SOFT_TIP_FILL * (CoronaryArteriesConfig().catheter_radius - workhorse.radius)
     paper = wires.preset("paper")  # 5 mm, 35 degrees: 1.48 mm wide, within the 7F bore
     assert coronary.scene_for(SceneConfig(wire=paper)).wire.tip_angle == paper.tip_angle
-    # 5 mm at 60 degrees (2.39 mm), shaped for a side branch of a wide proximal RCA, is kept;
-    # 5 mm at 90 degrees (3.18 mm) is wider than the cap (2.55 mm for the 7F bore).
-    shaped = dataclasses.replace(workhorse, tip_length=5e-3, tip_angle=math.radians(60.0))
+    # The catalogue's widest shape, 5 mm at 90 degrees (3.18 mm), shaped for a side branch of
+    # a wide proximal RCA, is kept; an 8 mm curve at 90 degrees (5.09 mm), which the catalogue
+    # does not offer, is wider than the cap (3.40 mm for the 7F bore).
+    shaped = wires.preset("workhorse", tip=wires.TipShape.degrees(5.0, 90.0))
+    assert shaped.tip_lateral_offset < room
     assert coronary.scene_for(SceneConfig(wire=shaped)).wire.tip_angle == shaped.tip_angle
-    wide = dataclasses.replace(workhorse, tip_length=5e-3, tip_angle=math.radians(90.0))
+    wide = dataclasses.replace(workhorse, tip_length=8e-3, tip_angle=math.radians(90.0))
     narrowed = coronary.scene_for(SceneConfig(wire=wide)).wire
     assert narrowed.tip_angle < wide.tip_angle
     assert room - 1e-5 < narrowed.tip_lateral_offset <= room + 1e-9
