@@ -117,7 +117,7 @@ _COMMON_KWARGS = (
 _DOMAIN_KWARGS: Mapping[str, tuple[str, ...]] = {
     "vessel": ("vessel", "target"),
     "random_coronary": ("pool_size", "pool_seed", "cache_dir"),
-    "coronary": ("pool_size", "pool_seed", "side", "target", "cache_dir"),
+    "coronary": ("pool_size", "pool_seed", "side", "target", "target_weights", "cache_dir"),
 }
 
 
@@ -241,6 +241,19 @@ def _integer(kwargs: Mapping[str, Any], name: str, default: int, minimum: int) -
     raise TaskConfigError(f"task_kwargs {name} must be an integer >= {minimum}, got {value!r}.")
 
 
+def _target_weights(kwargs: Mapping[str, Any]) -> dict[str, float] | None:
+    """task_kwargs ``target_weights``: a mapping of target label to a number, or None."""
+    value = kwargs.get("target_weights")
+    if value is None:
+        return None
+    if isinstance(value, Mapping) and all(
+            isinstance(label, str) and isinstance(weight, int | float)
+            and not isinstance(weight, bool) for label, weight in value.items()):
+        return {label: float(weight) for label, weight in value.items()}
+    raise TaskConfigError(f"task_kwargs target_weights must map target labels to numbers, "
+                          f"e.g. {{'AM': 3, 'RV': 3}}, got {value!r}.")
+
+
 #: environment_kwargs that control.Environment takes besides physics and task.
 _ENVIRONMENT_KWARGS = ("time_limit", "control_timestep", "n_sub_steps", "flat_observation",
                        "legacy_step")
@@ -308,6 +321,7 @@ def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> Ana
             scene=_scene(kwargs, coronary.DEFAULT_WIRE),
             target=None if kwargs.get("target") is None else str(kwargs["target"]),
             same_wire=same_wire,
+            target_weights=_target_weights(kwargs),
         )
     if entry.domain == "random_coronary":
         return random_coronary.pool(
@@ -349,7 +363,9 @@ def load(
             (extra entries), ``action`` / ``termination`` / ``initial_state`` / ``pixels``
             (config dataclasses);
             domain ``vessel``: ``vessel``, ``target``; domain ``random_coronary``:
-            ``pool_size``, ``pool_seed``, ``cache_dir``.
+            ``pool_size``, ``pool_seed``, ``cache_dir``; domain ``coronary``: those and
+            ``side``, ``target``, ``target_weights`` (relative weights of drawing each target
+            label, e.g. ``{"AM": 3}``; others 1).
         environment_kwargs: Passed to ``control.Environment`` (e.g. ``time_limit``).
 
     Raises:

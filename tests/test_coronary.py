@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import threading
+import types
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from sim4endor.models import wires
 from sim4endor.models.guidewire import GuidewireConfig, segment_lengths
 from sim4endor.models.scene import SOFT_TIP_FILL, SceneConfig, SceneError, fit_segments
 from sim4endor.tasks import TaskConfigError, coronary
+from sim4endor.tasks.anatomy import AnatomyPool
 from sim4endor.vessels.generators.coronary_arteries import (
     FINET,
     GUIDE_7F_INNER_DIAMETER,
@@ -296,6 +298,49 @@ def test_the_coronary_scene_cuts_the_shaft_segments_to_lie_in_the_tightest_bend(
     assert fit_segments(short, bend, lumen) is short  # already short enough: kept
     with pytest.raises(SceneError, match="not wider than the wire"):
         fit_segments(workhorse, bend, workhorse.radius)
+
+
+def _fake_pool(**kwargs: object) -> AnatomyPool:
+    """A pool of one member with targets A, B, C and D, built without MuJoCo."""
+    vessel = types.SimpleNamespace(name="fake", targets=dict.fromkeys("ABCD"))
+    return AnatomyPool([lambda: types.SimpleNamespace(vessel=vessel)], **kwargs)  # type: ignore[list-item,return-value,arg-type]
+
+
+def test_target_weights_draw_the_weighted_targets_more_often() -> None:
+    random = np.random.RandomState(0)
+    draws = [_fake_pool(target_weights={"A": 4.0, "D": 0.0}).draw(random)[1]
+             for _ in range(3000)]
+    counts = {label: draws.count(label) / len(draws) for label in "ABCD"}
+    # A at 4 / (4 + 1 + 1 + 0), B and C at 1/6 each, D never; 3000 draws: SD < 0.01.
+    assert counts["A"] == pytest.approx(4 / 6, abs=0.04)
+    assert counts["B"] == pytest.approx(1 / 6, abs=0.04)
+    assert counts["C"] == pytest.approx(1 / 6, abs=0.04)
+    assert counts["D"] == 0.0
+    uniform = [_fake_pool().draw(random)[1] for _ in range(3000)]
+    assert {label: uniform.count(label) / 3000 for label in "ABCD"} == pytest.approx(
+        dict.fromkeys("ABCD", 0.25), abs=0.04)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"target_weights": {"A": -1.0}}, "finite and >= 0.*'A': -1.0"),
+    ({"target_weights": {"A": math.nan}}, "finite and >= 0"),
+    ({"target_weights": {"A": 2.0}, "target": "A"}, "give one of them"),
+])
+def test_bad_target_weights_are_refused(kwargs: dict[str, object], message: str) -> None:
+    with pytest.raises(TaskConfigError, match=message):
+        _fake_pool(**kwargs)
+
+
+def test_target_weights_that_rule_out_every_target_name_the_tree() -> None:
+    pool = _fake_pool(target_weights=dict.fromkeys("ABCD", 0.0))
+    with pytest.raises(TaskConfigError, match=r"every target of fake \(\['A', 'B', 'C', 'D'\]\) 0"):
+        pool.draw(np.random.RandomState(0))
+
+
+def test_the_coronary_domain_checks_its_target_weights(tmp_path: Path) -> None:
+    with pytest.raises(TaskConfigError, match="must map target labels to numbers"):
+        suite.load("coronary", "navigate", {"pool_size": 1, "pool_seed": 1,
+                                            "target_weights": ["AM"], "cache_dir": tmp_path})
 
 
 def test_a_target_the_tree_lacks_is_refused(tmp_path: Path) -> None:

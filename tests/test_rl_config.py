@@ -42,6 +42,25 @@ def test_the_generalist_config_trains_across_held_out_coronary_trees() -> None:
     assert len(config.observation_scale()) == 35  # one default factor per number of the set
 
 
+def test_target_weights_reach_the_training_envs_only() -> None:
+    config = apply_overrides(load_config(EXPERIMENTS / "generalist" / "config.yaml"),
+                             ["env.target_weights={AM: 3, RV: 3}"])
+    assert config.env.target_weights == {"AM": 3.0, "RV": 3.0}
+    assert config.env.task_kwargs(0)["target_weights"] == {"AM": 3.0, "RV": 3.0}
+    # Evaluations draw uniformly, so their figures compare with runs trained without them.
+    assert "target_weights" not in config.env.task_kwargs(0, evaluation=True)
+    assert "target_weights" not in default_config("sac").env.task_kwargs(0)
+
+
+@pytest.mark.parametrize(("override", "message"), [
+    ("env.target_weights={A: 1}", "coronary domain's targets; domain 'simplified_phantom'"),
+    ("env.target_weights=[AM]", "env.target_weights must be a mapping"),
+])
+def test_bad_target_weights_name_the_field(override: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        apply_overrides(default_config("sac"), [override])
+
+
 def test_overrides_parse_values_as_yaml() -> None:
     config = apply_overrides(
         default_config("sac"),

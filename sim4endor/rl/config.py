@@ -11,6 +11,7 @@ field can be overridden with a ``section.field=value`` string (see :func:`apply_
 from __future__ import annotations
 
 import dataclasses
+import math
 import types
 import typing
 from collections.abc import Iterable, Mapping
@@ -105,6 +106,10 @@ class EnvConfig:
         eval_pool_seed: generated-tree domains: seed of the first evaluation tree; a seed at
             least ``pool_size`` away from ``pool_seed`` gives a held-out split (``None``:
             evaluate on the training trees).
+        target_weights: domain ``coronary``, training only: relative weights of drawing each
+            target label, e.g. ``{AM: 3, RV: 3}`` (others 1), a curriculum that trains more on
+            the branches a policy misses; evaluations keep drawing targets uniformly, so
+            their figures stay comparable (``None``: uniform).
     """
 
     domain: str = "simplified_phantom"
@@ -120,6 +125,7 @@ class EnvConfig:
     pool_seed: int | None = None
     pool_size: int | None = None
     eval_pool_seed: int | None = None
+    target_weights: dict[str, float] | None = None
 
     def __post_init__(self) -> None:
         _check(self, "env", positive=("num_envs", "pool_size"),
@@ -141,6 +147,13 @@ class EnvConfig:
                 parse_tip(self.tip)
             except WireCatalogueError as exc:
                 raise ConfigError(f"env.tip: {exc}") from None
+        if self.target_weights is not None and self.domain != "coronary":
+            raise ConfigError(f"env.target_weights weigh the coronary domain's targets; "
+                              f"domain {self.domain!r} draws none.")
+        if self.target_weights is not None and not all(
+                math.isfinite(weight) and weight >= 0 for weight in self.target_weights.values()):
+            raise ConfigError(f"env.target_weights must be finite and >= 0, got "
+                              f"{self.target_weights}.")
         if self.eval_pool_seed is not None and self.pool_size is None:
             raise ConfigError("env.eval_pool_seed needs env.pool_size (the training trees' "
                               "count), so the two splits can be told apart.")
@@ -173,7 +186,8 @@ class EnvConfig:
             wire = {"preset": self.wire,
                     "tip": tip if isinstance(tip, str) else dataclasses.asdict(tip)}
         given = {"vessel": self.vessel, "target": self.target, "wire": wire,
-                 "pool_seed": pool_seed, "pool_size": self.pool_size}
+                 "pool_seed": pool_seed, "pool_size": self.pool_size,
+                 "target_weights": None if evaluation else self.target_weights}
         kwargs.update({key: value for key, value in given.items() if value is not None})
         return kwargs
 
@@ -506,6 +520,12 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
         if value not in typing.get_args(hint):
             raise ConfigError(f"{where}={value!r}; choose one of {list(typing.get_args(hint))}.")
         return value
+    if origin is dict:
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"{where} must be a mapping, got {value!r}.")
+        key_hint, value_hint = typing.get_args(hint)
+        return {_coerce(k, key_hint, f"{where} key"): _coerce(v, value_hint, f"{where}.{k}")
+                for k, v in value.items()}
     if origin is tuple:
         if not isinstance(value, list | tuple):
             raise ConfigError(f"{where} must be a list, got {value!r}.")

@@ -7,8 +7,9 @@ randomly generated trees compiles each anatomy once, the first time it is drawn.
 
 from __future__ import annotations
 
+import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -120,20 +121,38 @@ class AnatomyPool(AnatomySource):
     themselves cache their vessel folders on disk.
     """
 
-    def __init__(self, builders: Sequence[Callable[[], Anatomy]], target: str | None = None
-                 ) -> None:
+    def __init__(self, builders: Sequence[Callable[[], Anatomy]], target: str | None = None,
+                 target_weights: Mapping[str, float] | None = None) -> None:
         """Stores the builders.
 
         Args:
             builders: One zero-argument function per pool member returning its anatomy.
             target: Aim every episode at this target label (every member drawn must have
                 it); ``None`` draws one of the member's targets.
+            target_weights: Relative weight of drawing a target, by label (e.g. ``{"AM": 3}``
+                draws a tree's acute marginal three times as often as each of its other
+                targets, whose weight is 1): a curriculum that trains more on the branches a
+                policy misses. ``None`` draws uniformly.
+
+        Raises:
+            TaskConfigError: For no builders, a weight that is negative or not finite, or
+                weights given with ``target``.
         """
         if not builders:
             raise TaskConfigError("An anatomy pool needs at least one member.")
+        if target_weights is not None:
+            if target is not None:
+                raise TaskConfigError("task_kwargs target fixes the target; target_weights "
+                                      "weigh drawn ones: give one of them.")
+            bad = {label: weight for label, weight in target_weights.items()
+                   if not (math.isfinite(weight) and weight >= 0)}
+            if bad:
+                raise TaskConfigError(f"task_kwargs target_weights must be finite and >= 0, "
+                                      f"got {bad}.")
         self._builders = tuple(builders)
         self._built: dict[int, Anatomy] = {}
         self._target = target
+        self._weights = None if target_weights is None else dict(target_weights)
 
     def _get(self, index: int) -> Anatomy:
         if index not in self._built:
@@ -141,13 +160,24 @@ class AnatomyPool(AnatomySource):
         return self._built[index]
 
     def draw(self, random: np.random.RandomState) -> tuple[Anatomy, str]:
-        """Draws a member uniformly, then one of its targets uniformly."""
+        """Draws a member uniformly, then one of its targets (uniformly, or by the pool's
+        ``target_weights``).
+
+        Raises:
+            TaskConfigError: If ``target_weights`` weigh every target of the member drawn 0.
+        """
         anatomy = self._get(int(random.randint(len(self._builders))))
         if self._target is not None:
             check_target(anatomy.vessel, self._target)
             return anatomy, self._target
         targets = sorted(anatomy.vessel.targets)
-        return anatomy, targets[int(random.randint(len(targets)))]
+        if self._weights is None:
+            return anatomy, targets[int(random.randint(len(targets)))]
+        weights = np.array([self._weights.get(label, 1.0) for label in targets])
+        if weights.sum() <= 0:
+            raise TaskConfigError(f"task_kwargs target_weights weigh every target of "
+                                  f"{anatomy.vessel.name} ({targets}) 0.")
+        return anatomy, targets[int(random.choice(len(targets), p=weights / weights.sum()))]
 
     def initial(self) -> Anatomy:
         """Returns the first member (built now if needed)."""

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Literal
 
@@ -119,7 +120,8 @@ def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig,
 
 def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = None,
          scene: SceneConfig | None = None, target: str | None = None,
-         same_wire: bool = False) -> AnatomyPool:
+         same_wire: bool = False, target_weights: Mapping[str, float] | None = None
+         ) -> AnatomyPool:
     """Returns the lazily built pool of ``size`` trees with seeds ``seed ... seed + size - 1``.
 
     Args:
@@ -133,6 +135,8 @@ def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = No
             one; every tree drawn must have it (a left target in a right tree is an error).
         same_wire: Give every tree the wire for :data:`MAX_INSERTION` of travel instead of
             fitting each tree's travel to its deepest target (slower; for ``wire_shape``).
+        target_weights: Draw targets by these relative weights per label (others 1), e.g.
+            ``{"AM": 3, "RV": 3}`` (:class:`~sim4endor.tasks.anatomy.AnatomyPool`).
     """
     if side not in ("left", "right", "both"):
         raise TaskConfigError(f"task_kwargs side must be 'left', 'right' or 'both', got {side!r}.")
@@ -142,4 +146,5 @@ def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = No
         [functools.partial(build_member, seed + k, folder, side, fitted, same_wire)
          for k in range(size)],
         target=target,
+        target_weights=target_weights,
     )
