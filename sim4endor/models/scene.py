@@ -39,19 +39,19 @@ from sim4endor.vessels.manifest import MANIFEST_FILE
 #: How wide a tapered-core wire's pre-bent tip may be, in (inlet bore radius − wire radius),
 #: where the wire starts (a coronary tree's guide catheter). A soft tip starts straight in the
 #: bore and takes its shape outside, so the bore does not bound the shape; a cardiologist sizes
-#: the curve to the vessel proximal to the target ("roughly the length of the diameter", the 1–5
-#: mm of :data:`~sim4endor.models.wires.SHAPE_LENGTH_RANGE`). 4 lets a tip reach 3.40 mm sideways
-#: from the 7F guide with a 0.014 in wire, so every shape the catalogue allows keeps its form
-#: (the widest, 5 mm at 90°, reaches 3.18 mm; a J 2.16 mm) and a curve can span most of a 3.5-3.9
-#: mm proximal LAD or RCA. With the cap at 3 (2.55 mm, 2026-11-27 to 2026-11-29) a 5 mm/90° tip
-#: was silently narrowed to 65°; kept at 90° it took the expert to 70 of the 80 episodes of issue
-#: 15's check trees built as vessel folders, against 68 with 5 mm/60° (docs/tasks/coronary.md,
-#: 2026-11-29). A 1 gf tip bends where a distal lumen is narrower. Before 2026-11-27 the cap was
-#: 2 (1.70 mm: the bore's width); before 2026-11-26 the coronary room was that of the smallest
-#: lumen drawn (1.5 mm), which held every tip to 1.14 mm, and the phantoms' 0.85 of the narrowest
-#: lumen (made for the paper wire's stiff 118 gf tip) cut the workhorse's 2 mm/45° tip to 28° (46
-#: of 76 coronary tuning targets reached instead of 54). Vessel folders wired with such a wire
-#: take the same rule (:func:`config_for_vessel`).
+#: the curve to the vessel proximal to the target ("roughly the length of the diameter", the
+#: 1–5 mm of :data:`~sim4endor.models.wires.SHAPE_LENGTH_RANGE`). 4 lets a tip reach 3.40 mm
+#: sideways from the 7F guide with a 0.014 in wire, so every shape the catalogue allows keeps
+#: its form (the widest, 5 mm at 90°, reaches 3.18 mm; a J 2.16 mm) and a curve can span most
+#: of a 3.5-3.9 mm proximal LAD or RCA. With the cap at 3 (2.55 mm, 2026-11-27 to 2026-11-29)
+#: a 5 mm/90° tip was silently narrowed to 65°; kept at 90° it took the expert to 70 of the 80
+#: episodes of issue 15's check trees built as vessel folders, against 68 with 5 mm/60°
+#: (docs/tasks/coronary.md, 2026-11-29). A 1 gf tip bends where a distal lumen is narrower.
+#: Before 2026-11-27 the cap was 2 (1.70 mm: the bore's width); before 2026-11-26 the coronary
+#: room was that of the smallest lumen drawn (1.5 mm), which held every tip to 1.14 mm, and the
+#: phantoms' 0.85 of the narrowest lumen (made for the paper wire's stiff 118 gf tip) cut the
+#: workhorse's 2 mm/45° tip to 28° (46 of 76 coronary tuning targets reached instead of 54).
+#: Vessel folders wired with such a wire take the same rule (:func:`config_for_vessel`).
 SOFT_TIP_FILL = 4.0
 
 
