@@ -8,7 +8,7 @@ given, with ``section.field`` in the message, never later inside MuJoCo or torch
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 _RULES: dict[str, tuple[Callable[[float], bool], str]] = {
     "positive": (lambda v: v > 0, "> 0"),
@@ -34,8 +34,8 @@ def require(config: object, prefix: str, error: type[Exception],
             empty for top-level fields.
         error: The exception class to raise (the config module's own error).
         **rules: Rule name (``positive``, ``non_negative``, ``unit``, ``fraction``) to the
-            field names it applies to. A tuple-valued field must hold such numbers only;
-            ``None`` values are skipped (optional fields).
+            field names it applies to. A tuple-valued field must hold such numbers only, a
+            mapping-valued field such values; ``None`` values are skipped (optional fields).
     """
     for rule, names in rules.items():
         test, text = _RULES[rule]
@@ -43,7 +43,8 @@ def require(config: object, prefix: str, error: type[Exception],
             value = getattr(config, name)
             if value is None:
                 continue
-            items = value if isinstance(value, tuple) else (value,)
+            items = (tuple(value.values()) if isinstance(value, Mapping)
+                     else value if isinstance(value, tuple) else (value,))
             if not all(is_number(v) and test(v) for v in items):
                 where = f"{prefix}.{name}" if prefix else name
                 raise error(f"{where} must be {text}, got {value!r}.")

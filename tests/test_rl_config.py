@@ -55,6 +55,7 @@ def test_target_weights_reach_the_training_envs_only() -> None:
 @pytest.mark.parametrize(("override", "message"), [
     ("env.target_weights={A: 1}", "coronary domain's targets; domain 'simplified_phantom'"),
     ("env.target_weights=[AM]", "env.target_weights must be a mapping"),
+    ("env.target_weights={AM: -1}", r"env.target_weights must be >= 0, got \{'AM': -1.0\}"),
 ])
 def test_bad_target_weights_name_the_field(override: str, message: str) -> None:
     with pytest.raises(ConfigError, match=message):

@@ -11,7 +11,6 @@ field can be overridden with a ``section.field=value`` string (see :func:`apply_
 from __future__ import annotations
 
 import dataclasses
-import math
 import types
 import typing
 from collections.abc import Iterable, Mapping
@@ -129,7 +128,7 @@ class EnvConfig:
 
     def __post_init__(self) -> None:
         _check(self, "env", positive=("num_envs", "pool_size"),
-               non_negative=("pool_seed", "eval_pool_seed"))
+               non_negative=("pool_seed", "eval_pool_seed", "target_weights"))
         if self.observations not in OBSERVATION_SETS:
             raise ConfigError(f"env.observations must be one of {sorted(OBSERVATION_SETS)}, "
                               f"got {self.observations!r}.")
@@ -150,10 +149,6 @@ class EnvConfig:
         if self.target_weights is not None and self.domain != "coronary":
             raise ConfigError(f"env.target_weights weigh the coronary domain's targets; "
                               f"domain {self.domain!r} draws none.")
-        if self.target_weights is not None and not all(
-                math.isfinite(weight) and weight >= 0 for weight in self.target_weights.values()):
-            raise ConfigError(f"env.target_weights must be finite and >= 0, got "
-                              f"{self.target_weights}.")
         if self.eval_pool_seed is not None and self.pool_size is None:
             raise ConfigError("env.eval_pool_seed needs env.pool_size (the training trees' "
                               "count), so the two splits can be told apart.")

@@ -7,7 +7,6 @@ randomly generated trees compiles each anatomy once, the first time it is drawn.
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -19,6 +18,7 @@ import numpy as np
 from filelock import FileLock
 
 from sim4endor import vessels
+from sim4endor._checks import is_number
 from sim4endor.models.scene import SceneConfig, build_model, config_for_vessel, fit_travel
 from sim4endor.tasks.config import TaskConfigError
 from sim4endor.vessels import Vessel
@@ -145,7 +145,7 @@ class AnatomyPool(AnatomySource):
                 raise TaskConfigError("task_kwargs target fixes the target; target_weights "
                                       "weigh drawn ones: give one of them.")
             bad = {label: weight for label, weight in target_weights.items()
-                   if not (math.isfinite(weight) and weight >= 0)}
+                   if not (is_number(weight) and weight >= 0)}
             if bad:
                 raise TaskConfigError(f"task_kwargs target_weights must be finite and >= 0, "
                                       f"got {bad}.")
