@@ -13,11 +13,12 @@ from guidewire_helpers import write_tube_vessel
 
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
-from sim4endor.models import scene
+from sim4endor.models import scene, wires
 from sim4endor.models.driver import DriverConfig, add_driver
 from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.vessels import Vessel
+from sim4endor.vessels.centerline import CenterlineGraph
 
 
 @pytest.fixture(scope="module")
@@ -155,3 +156,45 @@ def test_config_for_vessel_narrows_the_tip_for_thin_lumens(tmp_path: Path) -> No
     scene.build_spec(thin, config)  # the tip now fits the inlet
     wide = scene.config_for_vessel(write_tube_vessel(tmp_path / "wide"))
     assert wide.wire.tip_angle == GuidewireConfig().tip_angle
+
+
+def _arc_graph(bend: float, radius: float, turn: float = math.pi,
+               spacing: float = 2e-4) -> CenterlineGraph:
+    """A centerline of a straight lead-in, an arc of axis radius ``bend`` (m) turning by
+    ``turn`` and a straight lead-out, all of lumen radius ``radius``."""
+    lead = np.arange(0.0, 0.01, spacing)
+    angles = np.arange(0.0, turn, spacing / bend)
+    arc = np.column_stack([0.01 + bend * np.sin(angles), bend * (1 - np.cos(angles)),
+                           np.zeros_like(angles)])
+    end, heading = arc[-1], np.array([np.cos(turn), np.sin(turn), 0.0])
+    points = np.vstack([np.column_stack([lead, 0 * lead, 0 * lead]), arc,
+                        end + np.outer(lead[1:] + spacing, heading)])
+    edges = np.column_stack([np.arange(len(points) - 1), np.arange(1, len(points))])
+    return CenterlineGraph(points, np.full(len(points), radius), edges)
+
+
+def test_shaft_segments_are_cut_to_lie_in_the_tightest_bend_of_a_centerline() -> None:
+    workhorse = wires.preset("workhorse")
+    bend, lumen = 0.002, 0.00075  # a narrow branch's tight bend, as in a coronary tree
+    room = 0.75 * (lumen - workhorse.radius)
+    fitted = scene.fit_segments_to_centerline(workhorse, _arc_graph(bend, lumen))
+    # A chord of length l in an arc of radius R strays R - sqrt(R^2 - l^2 / 4) from it.
+    exact = 2 * math.sqrt(bend**2 - (bend - room) ** 2)
+    assert fitted.max_segment_length == pytest.approx(exact, rel=0.03)
+    assert fitted.max_segment_length < workhorse.max_segment_length
+    # Gentle or wide: the wire's own segments already fit, and the wire is returned as is.
+    for graph in (_arc_graph(0.05, lumen), _arc_graph(0.006, 0.002)):
+        assert scene.fit_segments_to_centerline(workhorse, graph) is workhorse
+    # A lumen narrower than the wire (a stenosis it does not pass) is not measured.
+    assert scene.fit_segments_to_centerline(
+        workhorse, _arc_graph(bend, 0.5 * workhorse.radius)) is workhorse
+
+
+def test_config_for_vessel_keeps_the_phantoms_segments() -> None:
+    from sim4endor import vessels
+
+    for name in ("simplified_phantom", "vascular_phantom"):
+        vessel = vessels.load(name)
+        for wire in (GuidewireConfig(), wires.preset("workhorse")):
+            fitted = scene.config_for_vessel(vessel, scene.SceneConfig(wire=wire)).wire
+            assert fitted.max_segment_length == wire.max_segment_length, name

@@ -34,6 +34,8 @@ from sim4endor.models.guidewire import (
     chain_starts,
 )
 from sim4endor.vessels import CENTERLINE_FILE, Vessel
+from sim4endor.vessels.axis import branch_chains
+from sim4endor.vessels.centerline import CenterlineGraph
 from sim4endor.vessels.manifest import MANIFEST_FILE
 
 #: How wide a tapered-core wire's pre-bent tip may be, in (inlet bore radius − wire radius),
@@ -79,7 +81,8 @@ def config_for_vessel(
     vessel: Vessel, base: SceneConfig | None = None, margin: float = 0.01,
     tip_fill: float = 0.85,
 ) -> SceneConfig:
-    """Returns ``base`` with the insertion range, wire length and tip bend fitted to ``vessel``.
+    """Returns ``base`` with the insertion range, wire length, tip bend and shaft segments
+    fitted to ``vessel``.
 
     Per-step cost grows with the number of wire segments, so the wire is only as long as the
     deepest target needs: ``max_insertion`` = the largest centerline distance from the inlet
@@ -95,6 +98,9 @@ def config_for_vessel(
     3 mm/75° one 19° where branches end 1.5 mm across, and the probing expert reached fewer
     targets of generated coronary trees built as vessel folders (docs/tasks/coronary.md,
     Measured).
+
+    The shaft segments are cut until each lies in every bend of the centerline
+    (:func:`fit_segments_to_centerline`); the shipped phantoms keep the wire's 5 mm.
     """
     scene = fit_travel(vessel, base, margin)
     if scene.wire.core_profile is None:
@@ -102,6 +108,7 @@ def config_for_vessel(
     else:
         wire = fit_tip(scene.wire, vessel.manifest.inlet.radius, SOFT_TIP_FILL,
                        f"{vessel.name}'s inlet")
+    wire = fit_segments_to_centerline(wire, vessel.centerline)
     return dataclasses.replace(scene, wire=wire)
 
 
@@ -163,6 +170,64 @@ def fit_segments(wire: GuidewireConfig, bend_radius: float, lumen_radius: float,
     if wire.max_segment_length <= longest:
         return wire
     return dataclasses.replace(wire, max_segment_length=longest)
+
+
+def fit_segments_to_centerline(wire: GuidewireConfig, graph: CenterlineGraph,
+                                fill: float = 0.75, precision: float = 1e-5) -> GuidewireConfig:
+    """Returns ``wire`` with its shaft segments short enough to lie in every bend of ``graph``.
+
+    :func:`fit_segments`'s rule, measured on the centerline itself instead of a bound on its
+    bends: a straight segment of length l laid as a chord from any node along its branch must
+    stay within ``fill`` x (the narrowest lumen radius under it − wire radius) of the
+    centerline between the chord's ends. A user's folder says nothing of its tightest bend, and
+    a segment longer than that jams there: in a vessel folder of a generated coronary tree
+    (1.5 mm acute marginal, bends of 2.6 lumen radii), 5 mm segments stopped the wire 2.6-3.3
+    mm short of the branch's end at the driver's 0.5 N push limit with 0.04-0.06 N on the tip
+    (docs/tasks/coronary.md, 2026-11-29). Chords end at junctions: a wire crossing one runs
+    through the parent's wider lumen. A chord over a lumen no wider than the wire (a
+    stenosis the wire does not pass) is not measured. The longest length that fits is found
+    by bisection to ``precision`` (m).
+    """
+    longest = wire.max_segment_length
+    for chain in branch_chains(graph):
+        points = graph.nodes[chain]
+        rooms = fill * (graph.radii[chain] - wire.radius)
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        if _chords_fit(points, rooms, arc, longest):
+            continue
+        low, high = 0.0, longest
+        while high - low > precision:
+            middle = 0.5 * (low + high)
+            low, high = (middle, high) if _chords_fit(points, rooms, arc, middle) else (low, middle)
+        longest = low
+    if longest >= wire.max_segment_length:
+        return wire
+    return dataclasses.replace(wire, max_segment_length=longest)
+
+
+def _chords_fit(points: np.ndarray, rooms: np.ndarray, arc: np.ndarray, length: float) -> bool:
+    """Whether every segment of ``length`` (m) laid as a chord from a node of the branch
+    ``points`` to a later node stays within the ``rooms`` (m) of the nodes it spans."""
+    for start in range(len(points)):
+        # A chord is no longer than the arc it spans: start the search where the arc is long
+        # enough.
+        end = int(np.searchsorted(arc, arc[start] + length))
+        while end < len(points) and np.linalg.norm(points[end] - points[start]) < length:
+            end += 1
+        if end >= len(points):
+            return True
+        # The chord's far end: where the branch's last edge crosses the sphere of radius
+        # ``length`` about the start (|a + t d| = length), not the node past it.
+        a, d = points[end - 1] - points[start], points[end] - points[end - 1]
+        b, c = float(a @ d), float(a @ a) - length**2
+        t = (-b + math.sqrt(b * b - float(d @ d) * c)) / float(d @ d)
+        span = points[start:end] - points[start]
+        axis = (a + t * d) / length
+        off = np.linalg.norm(span - np.outer(span @ axis, axis), axis=1)
+        room = rooms[start:end + 1].min()
+        if room > 0 and off.max() > room:
+            return False
+    return True
 
 
 def _room(wire: GuidewireConfig, lumen_radius: float, fill: float, where: str) -> float:
