@@ -21,6 +21,7 @@ from sim4endor.vessels.walls import (
     build_hulls,
     hulls_for_piece,
     intrusion,
+    wall_thickness,
 )
 
 R = 1.5e-3
@@ -38,7 +39,7 @@ def half_tube_piece(use_coacd: bool) -> WallContext:
     pieces, radius, u, angle = bin_faces(tube, sample_axis(graph), params)
     ctx = WallContext(np.asarray(tube.vertices), np.asarray(tube.faces, dtype=np.int64),
                       np.asarray(tube.vertex_normals), np.asarray(tube.face_normals), radius, u,
-                      angle, params)
+                      angle, np.full(len(tube.vertices), params.thickness), params)
     return ctx.subset(max(pieces[3:-3], key=len))
 
 
@@ -134,3 +135,25 @@ def test_a_pool_worker_builds_a_wall_in_series() -> None:
 
     with multiprocessing.get_context("spawn").Pool(1) as pool:
         assert pool.map(_build_in_worker, [0]) == [_build_in_worker(0)]
+
+
+def test_the_wall_is_half_the_gap_where_another_lumen_is_nearer_than_its_thickness() -> None:
+    # Two parallel tubes of radius R whose surfaces are 0.3 mm apart, as across a narrow
+    # carina: a full 0.8 mm wall from either side would reach 0.5 mm into the other lumen.
+    gap, thickness, n = 0.3e-3, 0.8e-3, 21
+    z = np.linspace(-L / 2, L / 2, n)
+    axes = [np.column_stack([np.full(n, x), np.zeros(n), z]) for x in (0.0, 2 * R + gap)]
+    edges = np.column_stack([np.arange(n - 1), np.arange(1, n)])
+    graph = CenterlineGraph(np.vstack(axes), np.full(2 * n, R), np.vstack([edges, edges + n]))
+    angles = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
+    normals = np.column_stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)])
+    walls = wall_thickness(R * normals, normals, graph, thickness)
+    facing, away = walls[0], walls[12]  # towards the other tube, and away from it
+    assert abs(facing - 0.5 * gap) <= thickness / 16  # the sampling step
+    assert away == thickness
+    # Off to the side the normal meets the other tube further out, or not at all.
+    assert np.all(walls >= facing - 1e-12)
+    # Nothing near: the wall keeps its thickness everywhere.
+    alone = CenterlineGraph(axes[0], np.full(n, R), edges)
+    assert np.all(wall_thickness(R * normals, normals, alone, thickness) == thickness)
+

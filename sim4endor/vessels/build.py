@@ -63,7 +63,14 @@ from sim4endor.vessels.mjcf_writer import (
 )
 from sim4endor.vessels.register import RegistrationParams, register_centerline
 from sim4endor.vessels.skeleton import SkeletonParams, extract_centerline
-from sim4endor.vessels.walls import Hull, WallContext, WallParams, bin_faces, build_hulls
+from sim4endor.vessels.walls import (
+    Hull,
+    WallContext,
+    WallParams,
+    bin_faces,
+    build_hulls,
+    wall_thickness,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -427,20 +434,22 @@ def build_vessel(
     pieces, face_radius, face_u, face_angle = bin_faces(mesh, axis, params.wall)
     pieces = [p[walled[p]] for p in pieces]
     pieces = [p for p in pieces if len(p)]
+    vertices, vertex_normals = np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals)
     ctx = WallContext(
-        vertices=np.asarray(mesh.vertices),
+        vertices=vertices,
         faces=np.asarray(mesh.faces, dtype=np.int64),
-        vertex_normals=np.asarray(mesh.vertex_normals),
+        vertex_normals=vertex_normals,
         face_normals=np.asarray(mesh.face_normals),
         face_radius=face_radius,
         face_u=face_u,
         face_angle=face_angle,
+        vertex_thickness=wall_thickness(vertices, vertex_normals, graph, params.wall.thickness),
         params=params.wall,
     )
     hulls = build_hulls(ctx, pieces, progress=_progress(show, f"{name}: wall hulls"))
     lumen_open, probe_count = lumen_open_fraction(hulls, axis, params.checks)
     probes = wall_probes(
-        ctx.vertices, ctx.faces, ctx.vertex_normals, ctx.face_normals, walled, params.wall.thickness
+        ctx.vertices, ctx.faces, ctx.vertex_normals, ctx.face_normals, walled, ctx.vertex_thickness
     )
     wall_closed = wall_closed_fraction(hulls, probes, slack=1e-3 * float(face_radius.min()))
     given_checks: dict[str, float] = {}

@@ -6,7 +6,8 @@
   probe blocked that is open, never the reverse). Probes within ``end_margin`` radii of a
   terminal node are skipped: a capped vessel end is walled, and the graph's last node may sit
   on the cap.
-* Wall closed: every lumen vertex and face centre is moved outward by half the wall thickness;
+* Wall closed: every lumen vertex and face centre is moved outward by half the wall's thickness
+  there (:func:`~sim4endor.vessels.walls.wall_thickness`: thinner at a narrow carina);
   such a probe must lie inside some hull, otherwise a wire could slip between hulls there.
   Probes on the open inlet (faces without a wall) are skipped.
 """
@@ -27,7 +28,7 @@ from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.axis import AxisSamples, sample_axis
 from sim4endor.vessels.centerline import CenterlineGraph
 from sim4endor.vessels.meshio import boundary_loops, loop_perimeter
-from sim4endor.vessels.walls import Hull, convex_hull
+from sim4endor.vessels.walls import Hull, convex_hull, wall_thickness
 
 if TYPE_CHECKING:
     from sim4endor.vessels import Vessel
@@ -113,16 +114,17 @@ def wall_probes(
     vertex_normals: FloatArray,
     face_normals: FloatArray,
     walled: NDArray[np.bool_],
-    thickness: float,
+    thickness: FloatArray,
 ) -> FloatArray:
-    """Returns points half a wall thickness outside the lumen surface of walled faces."""
+    """Returns points half the wall's ``thickness`` (per vertex, m) outside the lumen surface
+    of walled faces (a face centre takes its vertices' mean)."""
     faces = faces[walled]
     verts = np.unique(faces)
     centres = vertices[faces].mean(axis=1)
     return np.vstack(
         [
-            vertices[verts] + 0.5 * thickness * vertex_normals[verts],
-            centres + 0.5 * thickness * face_normals[walled],
+            vertices[verts] + 0.5 * thickness[verts, None] * vertex_normals[verts],
+            centres + 0.5 * thickness[faces].mean(axis=1)[:, None] * face_normals[walled],
         ]
     )
 
@@ -233,13 +235,14 @@ def check_folder(vessel: Vessel, params: CheckParams | None = None) -> dict[str,
     thickness = float(vessel.manifest.build.get("wall", {}).get("thickness", 0.8e-3))
     axis = sample_axis(vessel.centerline)
     lumen_open, _ = lumen_open_fraction(hulls, axis, params)
+    vertices, normals = np.asarray(lumen.vertices), np.asarray(lumen.vertex_normals)
     probes = wall_probes(
-        np.asarray(lumen.vertices),
+        vertices,
         np.asarray(lumen.faces),
-        np.asarray(lumen.vertex_normals),
+        normals,
         np.asarray(lumen.face_normals),
         walled,
-        thickness,
+        wall_thickness(vertices, normals, vessel.centerline, thickness),
     )
     wall_closed = wall_closed_fraction(hulls, probes, slack=1e-3 * float(axis.radius.min()))
     data = mujoco.MjData(model)
