@@ -100,8 +100,8 @@ def _run_python(script: str, piped: bool) -> subprocess.CompletedProcess[str]:
                           capture_output=True, text=True)
 
 
-def test_a_script_piped_into_python_builds_a_wall_in_series() -> None:
-    # Spawned workers re-run the main script from its path; piped in (``python -``) it has
+def test_a_script_piped_into_python_builds_a_wall() -> None:
+    # Spawned workers re-ran the main script from its path; piped in (``python -``) it has
     # none, and the pool replaced its dying workers forever: a coronary tree's first load
     # never ended.
     script = textwrap.dedent(
@@ -119,6 +119,31 @@ def test_a_script_piped_into_python_builds_a_wall_in_series() -> None:
     result = _run_python(script, piped=True)
     assert result.returncode == 0, result.stderr
     assert int(result.stdout) == _build_in_worker(0)
+
+
+def test_a_script_without_a_main_guard_builds_a_wall_in_parallel(tmp_path: Path) -> None:
+    # A spawned worker re-ran the main script; unguarded, its build ran again in every worker,
+    # which may not start processes while it starts itself, and the pool replaced the dying
+    # workers forever (and a coronary tree's first ``suite.load`` waited forever on the build
+    # lock its parent held). The workers must start without the user's script.
+    script = tmp_path / "unguarded.py"
+    script.write_text(textwrap.dedent(
+        """
+        import dataclasses
+        import numpy as np
+        from test_vessel_walls import half_tube_piece
+        from sim4endor.vessels import walls
+
+        ctx = half_tube_piece(use_coacd=False)
+        parallel = dataclasses.replace(ctx, params=dataclasses.replace(ctx.params, workers=2))
+        print(walls._can_spawn(), len(walls.build_hulls(parallel, [np.arange(len(ctx.faces))] * 2)))
+        """
+    ))
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parent)}
+    result = subprocess.run([sys.executable, str(script)], env=env, timeout=120,
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["True", str(_build_in_worker(0))]
 
 
 def _build_in_worker(_: int) -> int:

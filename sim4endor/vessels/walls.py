@@ -33,12 +33,11 @@ Faces of the end cap at the inlet get no wall, so a wire can enter a capped mesh
 from __future__ import annotations
 
 import contextlib
-import logging
 import multiprocessing
 import multiprocessing.pool
-import os
 import signal
 import sys
+import types
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -49,8 +48,6 @@ from scipy.spatial import ConvexHull, QhullError
 
 from sim4endor.vessels.axis import AxisSamples
 from sim4endor.vessels.centerline import CenterlineGraph
-
-logger = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -392,7 +389,8 @@ def _worker_pool(workers: int) -> Iterator[multiprocessing.pool.Pool]:
     if block:
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
-        pool = spawn.Pool(workers)
+        with _main_script_hidden():
+            pool = spawn.Pool(workers)
     finally:
         if block:
             signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
@@ -404,23 +402,31 @@ def _worker_pool(workers: int) -> Iterator[multiprocessing.pool.Pool]:
         pool.join()
 
 
-def _can_spawn() -> bool:
-    """Whether this process can start the spawned worker pool.
+@contextlib.contextmanager
+def _main_script_hidden() -> Iterator[None]:
+    """Workers spawned inside the block start without re-running the main script.
 
-    A daemonic process (a multiprocessing pool's or a collector's worker that draws a tree not
-    built yet) may not start children. And a spawned worker re-runs the main script from its
-    path: a script piped in (``python - < script.py``, main file ``<stdin>``) has none, so
-    every worker dies on start and ``multiprocessing.Pool`` replaces it forever, a build that
-    never ends. Both build in series.
+    A spawned worker re-runs its parent's main script (as ``__mp_main__``) before its first
+    task, and the wall's workers need none of it: their tasks are this module's functions.
+    Re-run, a script without an ``if __name__ == "__main__":`` guard loaded again in every
+    worker (a coronary tree's first ``suite.load`` waited forever there, on the build lock
+    its own parent held), and a script piped in (``python - < script.py``) has no file to
+    re-run, so every worker died on start and the pool replaced it forever. A bare module
+    stands in for ``__main__`` while the workers start (they read it then, in this thread).
     """
-    if multiprocessing.current_process().daemon:
-        return False
-    main_file = getattr(sys.modules.get("__main__"), "__file__", None)
-    if main_file is not None and not os.path.isfile(main_file):
-        logger.info("main script %s is not a file that spawned workers can re-run: building "
-                    "the wall in one process", main_file)
-        return False
-    return True
+    main = sys.modules["__main__"]
+    sys.modules["__main__"] = types.ModuleType("__main__")
+    try:
+        yield
+    finally:
+        sys.modules["__main__"] = main
+
+
+def _can_spawn() -> bool:
+    """Whether this process can start the spawned worker pool: a daemonic process (a
+    multiprocessing pool's or a collector's worker that draws a tree not built yet) may not
+    start children, and builds in series."""
+    return not multiprocessing.current_process().daemon
 
 
 def build_hulls(
