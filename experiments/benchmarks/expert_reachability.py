@@ -29,9 +29,11 @@ interval, and how many targets were reached from every start and from at least o
 
 Usage:
     python experiments/benchmarks/expert_reachability.py [--episodes 8] [--json]
-    python experiments/benchmarks/expert_reachability.py --domain coronary --trees 20
+    python experiments/benchmarks/expert_reachability.py --domain coronary --trees 20 --tip 5 90
     python experiments/benchmarks/expert_reachability.py --domain coronary --expert probing \
-        --tip 3 75 --workers 2 [--starts 3]
+        --tip 5 90 --workers 2 [--starts 3]
+
+Issue 15's figures are measured with the tip shaped 5 mm at 90° (docs/tasks/coronary.md).
 """
 
 from __future__ import annotations
