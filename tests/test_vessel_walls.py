@@ -87,15 +87,21 @@ def test_parallel_build_after_coacd_in_this_process_does_not_hang() -> None:
         assert len(hulls) == 4 * len(serial), (len(hulls), len(serial))
         """
     )
-    result = _run_python(script, piped=False)
+    result = _run_python(script)
     assert result.returncode == 0, result.stderr
 
 
-def _run_python(script: str, piped: bool) -> subprocess.CompletedProcess[str]:
-    """Runs ``script`` in a new interpreter that can import this module, as ``python -c`` or
-    piped into ``python -``; a hang fails at 120 s."""
+def _run_python(script: str, piped: bool = False,
+                file: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """Runs ``script`` in a new interpreter that can import this module, as ``python -c``,
+    piped into ``python -``, or written to ``file`` and run as ``python FILE``; a hang fails
+    at 120 s."""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).parent)}
-    command = [sys.executable, "-"] if piped else [sys.executable, "-c", script]
+    if file is not None:
+        file.write_text(script)
+        command = [sys.executable, str(file)]
+    else:
+        command = [sys.executable, "-"] if piped else [sys.executable, "-c", script]
     return subprocess.run(command, input=script if piped else None, env=env, timeout=120,
                           capture_output=True, text=True)
 
@@ -126,8 +132,7 @@ def test_a_script_without_a_main_guard_builds_a_wall_in_parallel(tmp_path: Path)
     # which may not start processes while it starts itself, and the pool replaced the dying
     # workers forever (and a coronary tree's first ``suite.load`` waited forever on the build
     # lock its parent held). The workers must start without the user's script.
-    script = tmp_path / "unguarded.py"
-    script.write_text(textwrap.dedent(
+    script = textwrap.dedent(
         """
         import dataclasses
         import numpy as np
@@ -138,10 +143,8 @@ def test_a_script_without_a_main_guard_builds_a_wall_in_parallel(tmp_path: Path)
         parallel = dataclasses.replace(ctx, params=dataclasses.replace(ctx.params, workers=2))
         print(walls._can_spawn(), len(walls.build_hulls(parallel, [np.arange(len(ctx.faces))] * 2)))
         """
-    ))
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parent)}
-    result = subprocess.run([sys.executable, str(script)], env=env, timeout=120,
-                            capture_output=True, text=True)
+    )
+    result = _run_python(script, file=tmp_path / "unguarded.py")
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == ["True", str(_build_in_worker(0))]
 
