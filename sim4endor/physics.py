@@ -48,6 +48,7 @@ class _Indices:
     wall_sensors: tuple[int, ...]  # sensordata addresses of each chain's wall contact sensor
     tip_sensor: int  # sensordata address of the tip section's wall contact sensor
     tip_start: int  # index in wire_bodies of the first segment of the pre-bent tip
+    shape_start: int  # the same of the shaped part: the tip and any secondary curve behind it
     # Per chain after the first: the body its free root copies, the root's qpos and dof
     # addresses (see GuidewireConfig.chain_bodies).
     chain_roots: tuple[tuple[int, int, int], ...]
@@ -117,6 +118,11 @@ class GuidewirePhysics(dm_mujoco.Physics):
         sheath = mujoco.mj_name2id(model, body, names.SHEATH_BODY)
         sensor = mujoco.mjtObj.mjOBJ_SENSOR
         tip_sensor = mujoco.mj_name2id(model, sensor, names.TIP_CONTACT_SENSOR)
+        tip_start = int(np.flatnonzero(bodies == model.sensor_objid[tip_sensor])[0])
+        # A body's rest turn from the one before it is the wire's pre-bend there: the shaped
+        # part starts at the first body that turns (a chain root copies its segment's pose, so
+        # the body after it turns relative to that copy, as in one chain).
+        turned = np.flatnonzero(np.abs(model.body_quat[bodies[1:], 0]) < 1.0 - 1e-12) + 1
         indices = _Indices(
             model=model,
             wire_bodies=bodies,
@@ -128,7 +134,8 @@ class GuidewirePhysics(dm_mujoco.Physics):
                 for first in starts
             ),
             tip_sensor=int(model.sensor_adr[tip_sensor]),
-            tip_start=int(np.flatnonzero(bodies == model.sensor_objid[tip_sensor])[0]),
+            tip_start=tip_start,
+            shape_start=min(tip_start, int(turned[0])) if turned.size else tip_start,
             chain_roots=tuple(roots),
             actuators=(
                 mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, names.INSERTION_ACTUATOR),
@@ -171,6 +178,12 @@ class GuidewirePhysics(dm_mujoco.Physics):
     def tip_start_index(self) -> int:
         """Index in :meth:`wire_points` of the vertex where the pre-bent tip starts."""
         return self._indices().tip_start
+
+    def shape_start_index(self) -> int:
+        """Index in :meth:`wire_points` of the vertex where the shaped part starts: the
+        secondary curve's proximal end, or the tip's start without one
+        (:attr:`~sim4endor.models.guidewire.GuidewireConfig.secondary_angle`)."""
+        return self._indices().shape_start
 
     def insertion_depth(self) -> float:
         """Carriage insertion (m) from its start; the tip has advanced about as much."""

@@ -94,12 +94,15 @@ def test_a_tip_shape_reaches_the_task_and_a_bad_one_is_refused_by_name(
     assert (wire.tip_length, wire.tip_angle) == pytest.approx((0.0015, math.radians(60)))
     assert wires.resolve(EnvConfig(wire="stiff", tip="j").task_kwargs(0)["wire"]).tip_angle \
         == pytest.approx(wires.J_ANGLE)
+    curved = wires.resolve(EnvConfig(wire="workhorse", tip="2,60,7,40").task_kwargs(0)["wire"])
+    assert (curved.secondary_distance, curved.secondary_angle) == pytest.approx(
+        (0.007, math.radians(40)))
     with pytest.raises(ConfigError, match=r"env\.tip='3,75' shapes the tip of env\.wire"):
         EnvConfig(tip="3,75")
     with pytest.raises(ConfigError, match=r"env\.tip: Tip shape '3,95'.*30-90 deg"):
         EnvConfig(wire="workhorse", tip="3,95")
     out = tmp_path / "run"
-    for tip, message in (("3x75", "LENGTH_MM,ANGLE_DEG (e.g. 3,75) or J, got '3x75'"),
+    for tip, message in (("3x75", "(e.g. 2,60,7,40), or J; got '3x75'"),
                          ("6,60", "length must be 1-5 mm")):
         with pytest.raises(SystemExit) as exited:  # argparse's own refusal
             main(["train", "sac", "--wire", "workhorse", "--tip", tip, "--out", str(out)])

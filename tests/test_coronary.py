@@ -268,15 +268,24 @@ def test_the_coronary_scene_keeps_tips_shaped_for_the_proximal_arteries_and_narr
     room = SOFT_TIP_FILL * (CoronaryArteriesConfig().catheter_radius - workhorse.radius)
     paper = wires.preset("paper")  # 5 mm, 35 degrees: 1.48 mm wide, within the 7F bore
     assert coronary.scene_for(SceneConfig(wire=paper)).wire.tip_angle == paper.tip_angle
-    # The catalogue's widest shape, 5 mm at 90 degrees (3.18 mm), shaped for a side branch of
-    # a wide proximal RCA, is kept; an 8 mm curve at 90 degrees (5.09 mm), which the catalogue
-    # does not offer, is wider than the cap (3.40 mm for the 7F bore).
-    shaped = wires.preset("workhorse", tip=wires.TipShape.degrees(5.0, 90.0))
-    assert shaped.tip_lateral_offset < room
-    assert coronary.scene_for(SceneConfig(wire=shaped)).wire.tip_angle == shaped.tip_angle
-    wide = dataclasses.replace(workhorse, tip_length=8e-3, tip_angle=math.radians(90.0))
+    # The catalogue's widest single curve, 5 mm at 90 degrees (3.18 mm), shaped for a side
+    # branch of a wide proximal RCA, is kept, and so is a 2 mm/60 degree tip with a secondary
+    # curve of 40 degrees 7 mm from the end (4.93 mm); a 10 mm curve at 90 degrees (6.37 mm),
+    # which the catalogue does not offer, is wider than the cap (5.11 mm for the 7F bore).
+    for tip in (wires.TipShape.degrees(5.0, 90.0), wires.TipShape.degrees(2.0, 60.0, 7.0, 40.0)):
+        shaped = wires.preset("workhorse", tip=tip)
+        assert shaped.tip_lateral_offset < room
+        kept = coronary.scene_for(SceneConfig(wire=shaped)).wire
+        assert (kept.tip_angle, kept.secondary_angle) == (shaped.tip_angle, shaped.secondary_angle)
+    wide = dataclasses.replace(workhorse, tip_length=10e-3, tip_angle=math.radians(90.0))
     narrowed = coronary.scene_for(SceneConfig(wire=wide)).wire
     assert narrowed.tip_angle < wide.tip_angle
+    assert room - 1e-5 < narrowed.tip_lateral_offset <= room + 1e-9
+    # Too wide with its secondary curve, a shape keeps its curves' proportion as it narrows.
+    curved = wires.preset("workhorse", tip=wires.TipShape.degrees(3.0, 60.0, 9.0, 60.0))
+    assert curved.tip_lateral_offset > room
+    narrowed = coronary.scene_for(SceneConfig(wire=curved)).wire
+    assert narrowed.secondary_angle / narrowed.tip_angle == pytest.approx(1.0)
     assert room - 1e-5 < narrowed.tip_lateral_offset <= room + 1e-9
 
 

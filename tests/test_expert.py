@@ -80,8 +80,19 @@ def test_the_expert_reads_the_tip_of_the_wire_in_the_physics() -> None:
         env.reset()
         points = env.physics.wire_points()
         start = env.physics.tip_start_index()
+        assert env.physics.shape_start_index() == start  # no secondary curve
         arc = np.linalg.norm(np.diff(points[start:], axis=0), axis=1).sum()
         assert arc == pytest.approx(tip, rel=1e-6)
+    # With a secondary curve the shaped part reaches back to it (7 +- 1 mm from the end, on
+    # the vertices of the segment grid there): the body axis is read behind it.
+    env = suite.load("simplified_phantom", "task_a",
+                     {"random": 0, "wire": {"preset": "workhorse", "tip": "2,60,7,40"}})
+    env.reset()
+    points = env.physics.wire_points()
+    start = env.physics.shape_start_index()
+    assert start < env.physics.tip_start_index()
+    arc = np.linalg.norm(np.diff(points[start:], axis=0), axis=1).sum()
+    assert 0.006 - 1e-9 <= arc <= 0.008 + np.linalg.norm(points[start] - points[start - 1])
     fixed = CenterlineExpert(ExpertConfig(tip_length=0.005))
     read = CenterlineExpert()
     env = suite.load("simplified_phantom", "task_b", {"random": 0})

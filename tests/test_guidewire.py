@@ -43,6 +43,25 @@ def test_pre_bent_tip_offset_matches_the_arc_and_fits_a_2mm_lumen() -> None:
     assert np.allclose(wire_vertices(straight)[:, 1:], 0.0)
 
 
+def test_a_secondary_curve_turns_the_shaft_behind_the_tip_in_the_tip_plane() -> None:
+    tip = GuidewireConfig(tip_length=0.002, tip_angle=math.radians(60.0))
+    both = dataclasses.replace(tip, secondary_distance=0.007,
+                               secondary_angle=math.radians(40.0))
+    lengths = segment_lengths(both)
+    points = wire_vertices(both)
+    headings = np.degrees(np.arctan2(*np.diff(points, axis=0)[:, 1::-1].T))
+    middles = np.cumsum(lengths[::-1])[::-1] - lengths / 2  # each segment's distance from the end
+    # Straight behind the curve (7 +- 1 mm), turned by all of it in front; the tip adds its own.
+    assert np.allclose(headings[middles >= 0.008], 0.0)
+    in_front = (middles <= 0.006) & (middles > both.tip_length)
+    assert in_front.any() and np.allclose(headings[in_front], 40.0)
+    assert headings[-1] == pytest.approx(40.0 + 60.0 * (1 - 0.5 / both.tip_segments))
+    assert np.all(points[:, 2] == 0.0)  # in the tip's plane, to the same side
+    assert both.tip_lateral_offset > tip.tip_lateral_offset + 0.003
+    with pytest.raises(Sim4EndoRError, match="secondary_distance"):
+        dataclasses.replace(tip, secondary_distance=0.002, secondary_angle=0.5)  # on the tip
+
+
 def _compiled_wire(config: GuidewireConfig) -> mujoco.MjModel:
     spec = base_spec()
     add_guidewire(spec, spec.worldbody.add_body(name="mount"), config)

@@ -116,6 +116,14 @@ def test_tip_shapes_and_their_errors() -> None:
         wires.TipShape.degrees(2.0, 120.0)
     with pytest.raises(wires.WireCatalogueError, match="'S'"):
         wires.preset("workhorse", tip="S")
+    curved = wires.preset("workhorse", tip=wires.TipShape.degrees(2.0, 60.0, 7.0, 40.0))
+    assert (curved.secondary_distance, curved.secondary_angle) == pytest.approx(
+        (0.007, math.radians(40)))
+    assert wires.shaped(curved, "J").secondary_angle == 0.0  # a J has no secondary curve
+    with pytest.raises(wires.WireCatalogueError, match=r"secondary_distance must be 5–10 mm"):
+        wires.TipShape.degrees(4.0, 60.0, 4.5, 40.0)  # on the 4 mm tip
+    with pytest.raises(wires.WireCatalogueError, match=r"TipShape\.secondary_angle"):
+        wires.TipShape.degrees(2.0, 60.0, 7.0, 5.0)
     # config_for_vessel narrows the paper wire's stiff tip to the narrowest lumen; a soft
     # (tapered-core) tip only to three times the inlet's room, which a J (2.16 mm) fits in the
     # 2 mm phantom, as it does on the coronary domain.
@@ -131,10 +139,14 @@ def test_tip_shapes_as_written_on_a_command_line() -> None:
     # The same text shapes a wire in task_kwargs, as --tip does on the command line.
     written = wires.resolve({"preset": "workhorse", "tip": "5,60"})
     assert written == wires.preset("workhorse", tip=wires.TipShape.degrees(5.0, 60.0))
-    for text, message in (("3x75", r"LENGTH_MM,ANGLE_DEG \(e\.g\. 3,75\) or J, got '3x75'"),
+    # A secondary curve: its distance from the end and its angle follow the tip's.
+    assert wires.parse_tip("2,60,7,40") == wires.TipShape.degrees(2.0, 60.0, 7.0, 40.0)
+    for text, message in (("3x75", r"LENGTH_MM,ANGLE_DEG \(e\.g\. 3,75\).*got '3x75'"),
                           ("3,75,1", "got '3,75,1'"),
                           ("0.5,60", r"'0\.5,60': the shaped length must be 1-5 mm"),
-                          ("2,nan", "and the angle 30-90 deg")):
+                          ("2,nan", "and the angle 30-90 deg"),
+                          ("3,60,3.5,40", r"secondary curve 4-10 mm from the end, behind the tip"),
+                          ("2,60,7,75", "and 15-60 deg")):
         with pytest.raises(wires.WireCatalogueError, match=message):
             wires.parse_tip(text)
 

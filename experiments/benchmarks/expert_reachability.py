@@ -15,7 +15,8 @@ prints each (tree, target) and the overall success rate.
 plain expert is stuck it simulates several aims on a copy of the simulation and follows the
 best. It is the stronger reachability check (can the wire get there at all); the plain expert
 is the reactive reference that the policies' tables quote. ``--tip LENGTH_MM ANGLE_DEG``
-shapes the wire's tip as a cardiologist would before wiring (default: the preset's shape).
+shapes the wire's tip as a cardiologist would before wiring (default: the preset's shape);
+two more numbers, ``DISTANCE_MM ANGLE_DEG``, add a secondary curve behind it.
 ``--workers N`` runs N coronary episodes at once (one process each); the rows come out in the
 same order and with the same results as with one.
 
@@ -40,7 +41,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import math
 import multiprocessing
 from typing import cast
 
@@ -48,6 +48,7 @@ from scipy.stats import binomtest
 
 from sim4endor import _json as strict_json
 from sim4endor import suite
+from sim4endor.models import wires
 from sim4endor.tasks.expert import CenterlineExpert, ProbingExpert, run_expert
 
 TASKS = (("simplified_phantom", "task_a"), ("simplified_phantom", "task_b"),
@@ -165,8 +166,10 @@ def main() -> None:
     parser.add_argument("--trees", type=int, default=20, help="coronary trees")
     parser.add_argument("--first-seed", type=int, default=1000, help="first coronary tree seed")
     parser.add_argument("--wire", default="workhorse", help="wire preset (coronary)")
-    parser.add_argument("--tip", type=float, nargs=2, metavar=("LENGTH_MM", "ANGLE_DEG"),
-                        help="shape the wire's tip (coronary; default: the preset's)")
+    parser.add_argument("--tip", type=float, nargs="+", metavar="MM_OR_DEG",
+                        help="shape the wire's tip (coronary; default: the preset's): "
+                             "LENGTH_MM ANGLE_DEG, and a secondary curve's DISTANCE_MM "
+                             "ANGLE_DEG if it has one")
     parser.add_argument("--expert", choices=tuple(EXPERTS), default="centerline")
     parser.add_argument("--workers", type=int, default=1,
                         help="episodes run at once, one process each (coronary)")
@@ -179,9 +182,13 @@ def main() -> None:
     if args.domain == "coronary":
         wire: str | dict[str, object] = args.wire
         if args.tip:
-            length_mm, angle_deg = args.tip
-            wire = {"preset": args.wire, "tip": {"length": length_mm * 1e-3,
-                                                 "angle": math.radians(angle_deg)}}
+            if len(args.tip) not in (2, 4):
+                parser.error(f"--tip takes 2 or 4 numbers, got {len(args.tip)}")
+            try:
+                tip = wires.TipShape.degrees(*args.tip)
+            except wires.WireCatalogueError as error:
+                parser.error(str(error))
+            wire = {"preset": args.wire, "tip": tip.as_mapping()}
         coronary_reachability(args.first_seed, args.trees, wire, args.expert, args.workers,
                               args.starts, args.json)
         return

@@ -69,11 +69,12 @@ def add_task_arguments(parser: argparse.ArgumentParser, *, evaluation_split: boo
     group.add_argument("--target", help="domain vessel: the target label, e.g. T1")
     group.add_argument("--wire", metavar="PRESET",
                        help="guidewire preset, e.g. workhorse (default: the domain's wire)")
-    group.add_argument("--tip", type=tip_shape, metavar="LENGTH_MM,ANGLE_DEG|J",
+    group.add_argument("--tip", type=tip_shape, metavar="LENGTH_MM,ANGLE_DEG[,MM,DEG]|J",
                        help="shape the --wire preset's tip as a cardiologist does: the distal "
-                            "1-5 mm bent through 30-90 deg (e.g. 3,75), or J (default: the "
-                            "tip a given run or policy was trained with, else the preset's "
-                            "shape)")
+                            "1-5 mm bent through 30-90 deg (e.g. 3,75), optionally with a "
+                            "secondary curve of 15-60 deg centred 4-10 mm from the end (e.g. "
+                            "2,60,7,40), or J (default: the tip a given run or policy was "
+                            "trained with, else the preset's shape)")
     group.add_argument("--pool-seed", type=seed, metavar="SEED",
                        help="generated trees: seed of the first training tree")
     group.add_argument("--pool-size", type=positive_int, metavar="N",

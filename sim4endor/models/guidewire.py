@@ -59,6 +59,9 @@ from sim4endor.models import constants as names
 
 _CABLE_PLUGIN = "mujoco.elasticity.cable"
 INCH = 0.0254
+#: Arc length (m) over which a secondary curve (GuidewireConfig.secondary_angle) bends: a
+#: cardiologist's finger bend, short next to the curve's 4-10 mm distance from the tip.
+SECONDARY_CURVE_LENGTH = 0.002
 #: MuJoCo's friction cones by the name GuidewireConfig.friction_cone takes.
 FRICTION_CONES = types.MappingProxyType({"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL,
                                          "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC})
@@ -83,6 +86,13 @@ class GuidewireConfig:
         tip_length: Arc length of the pre-bent distal tip (m).
         tip_angle: Total pre-bend angle of the tip (rad); 35° over 5 mm gives a 1.48 mm
             lateral offset, which fits a 2 mm-radius lumen.
+        secondary_angle: Pre-bend (rad) of an optional secondary curve on the shaft behind the
+            tip, in the tip's plane and to the same side; 0 (default): none. A cardiologist
+            shapes one to reach across a wide vessel: the primary curve matches the angle to
+            negotiate, the secondary the vessel's size (docs/guidewire.md, "Shaping the tip").
+        secondary_distance: Distance (m) from the distal end to the middle of the secondary
+            curve, which spreads its angle over :data:`SECONDARY_CURVE_LENGTH`. It must lie
+            proximal of the tip: at least ``tip_length`` + that length / 2.
         tip_stiffness_factor: Bending/twisting stiffness of the tip relative to the shaft.
         friction: Sliding friction coefficient of wire contacts (the wire's geoms have
             priority, so this value is used against walls and sheath). The catalogue's
@@ -134,6 +144,8 @@ class GuidewireConfig:
     shear_modulus: float = 60e9 / 2.6
     tip_length: float = 0.005
     tip_angle: float = math.radians(35.0)
+    secondary_angle: float = 0.0
+    secondary_distance: float = 0.0
     tip_stiffness_factor: float = 0.5
     friction: float = 0.1
     density: float = 6450.0
@@ -172,6 +184,21 @@ class GuidewireConfig:
         if not 0 <= self.tip_angle < math.pi:
             raise GuidewireConfigError(
                 f"GuidewireConfig.tip_angle must be in [0, pi) rad, got {self.tip_angle}."
+            )
+        if not 0 <= self.secondary_angle < math.pi:
+            raise GuidewireConfigError(
+                "GuidewireConfig.secondary_angle must be in [0, pi) rad, got "
+                f"{self.secondary_angle}."
+            )
+        nearest = self.tip_length + SECONDARY_CURVE_LENGTH / 2
+        if self.secondary_angle and not (
+            math.isfinite(self.secondary_distance)
+            and nearest - 1e-12 <= self.secondary_distance < self.length - SECONDARY_CURVE_LENGTH
+        ):
+            raise GuidewireConfigError(
+                f"GuidewireConfig.secondary_distance must be >= tip_length + "
+                f"{SECONDARY_CURVE_LENGTH / 2} m ({nearest} m: the secondary curve lies behind "
+                f"the tip) and within the wire, got {self.secondary_distance}."
             )
         if self.tip_segments < 1 or self.segment_growth < 1:
             raise GuidewireConfigError(
@@ -226,7 +253,8 @@ class GuidewireConfig:
 
     @property
     def tip_lateral_offset(self) -> float:
-        """Sideways offset of the tip end from the shaft axis caused by the pre-bend (m)."""
+        """Sideways offset of the tip end from the shaft axis caused by the pre-bends (m):
+        the tip's and any secondary curve's."""
         return float(abs(wire_vertices(self)[-1, 1]))
 
     @property
@@ -304,7 +332,7 @@ def segment_lengths(config: GuidewireConfig) -> NDArray[np.float64]:
 def wire_vertices(config: GuidewireConfig) -> NDArray[np.float64]:
     """Returns the (N+1, 3) rest-shape vertices in the mount frame (wire along +x, tip to +y)."""
     lengths = segment_lengths(config)
-    return _rest_vertices(lengths, _segment_headings(config, len(lengths)))
+    return _rest_vertices(lengths, _segment_headings(config, lengths))
 
 
 def _rest_vertices(
@@ -315,11 +343,21 @@ def _rest_vertices(
     return np.vstack([np.zeros(3), np.cumsum(steps, axis=0)])
 
 
-def _segment_headings(config: GuidewireConfig, count: int) -> NDArray[np.float64]:
+def _segment_headings(config: GuidewireConfig,
+                      lengths: NDArray[np.float64]) -> NDArray[np.float64]:
+    """In-plane heading (rad) of each segment of ``lengths`` in the rest shape."""
     # Mid-segment headings of a discretised circular arc over the tip segments.
+    count = len(lengths)
     headings = np.zeros(count)
     k = np.arange(config.tip_segments)
     headings[count - config.tip_segments :] = (k + 0.5) * config.tip_angle / config.tip_segments
+    if config.secondary_angle:
+        # Every segment distal of the secondary curve turns by its angle, the segments whose
+        # middles lie on the curve by their share of it.
+        from_tip = np.cumsum(lengths[::-1])[::-1] - lengths / 2
+        share = (config.secondary_distance + SECONDARY_CURVE_LENGTH / 2 - from_tip) \
+            / SECONDARY_CURVE_LENGTH
+        headings += config.secondary_angle * np.clip(share, 0.0, 1.0)
     return headings
 
 
@@ -402,7 +440,7 @@ def add_guidewire(
             f"segments; GuidewireConfig.length is {config.length} m with "
             f"{config.tip_segments} tip segments."
         )
-    headings = _segment_headings(config, len(lengths))
+    headings = _segment_headings(config, lengths)
     factors = _stiffness_factors(config, lengths)
     core_radius = 0.5 * (config.core_diameter or config.outer_diameter)
     # Joint b's bending stiffness as the plugin will compute it: E·I·factor / l_(b-1).

@@ -42,10 +42,13 @@ from sim4endor.vessels.manifest import MANIFEST_FILE
 #: where the wire starts (a coronary tree's guide catheter). A soft tip starts straight in the
 #: bore and takes its shape outside, so the bore does not bound the shape; a cardiologist sizes
 #: the curve to the vessel proximal to the target ("roughly the length of the diameter", the
-#: 1–5 mm of :data:`~sim4endor.models.wires.SHAPE_LENGTH_RANGE`). 4 lets a tip reach 3.40 mm
-#: sideways from the 7F guide with a 0.014 in wire, so every shape the catalogue allows keeps
-#: its form (the widest, 5 mm at 90°, reaches 3.18 mm; a J 2.16 mm) and a curve can span most
-#: of a 3.5-3.9 mm proximal LAD or RCA. With the cap at 3 (2.55 mm, 2026-11-27 to 2026-11-29)
+#: 1–5 mm of :data:`~sim4endor.models.wires.SHAPE_LENGTH_RANGE`), and a secondary curve to
+#: the vessel's size. 6 lets a tip reach 5.11 mm sideways from the 7F guide with a 0.014 in
+#: wire: every single curve the catalogue allows keeps its form (the widest, 5 mm at 90°,
+#: reaches 3.18 mm; a J 2.16 mm), and so does a 2 mm/60° tip with a 40° secondary curve 7 mm
+#: from the end (4.93 mm), sized to span a 3.5-3.9 mm proximal LAD or RCA and the far wall
+#: of a wide parent at a side branch (docs/tasks/coronary.md, 2026-11-29, later). It was 4
+#: (3.40 mm) until then, and with the cap at 3 (2.55 mm, 2026-11-27 to 2026-11-29)
 #: a 5 mm/90° tip was silently narrowed to 65°; kept at 90° it took the expert to 70 of the 80
 #: episodes of issue 15's check trees built as vessel folders, against 68 with 5 mm/60°
 #: (docs/tasks/coronary.md, 2026-11-29). A 1 gf tip bends where a distal lumen is narrower.
@@ -54,7 +57,7 @@ from sim4endor.vessels.manifest import MANIFEST_FILE
 #: phantoms' 0.85 of the narrowest lumen (made for the paper wire's stiff 118 gf tip) cut the
 #: workhorse's 2 mm/45° tip to 28° (46 of 76 coronary tuning targets reached instead of 54).
 #: Vessel folders wired with such a wire take the same rule (:func:`config_for_vessel`).
-SOFT_TIP_FILL = 4.0
+SOFT_TIP_FILL = 6.0
 
 
 class SceneError(Sim4EndoRError, ValueError):
@@ -133,8 +136,9 @@ def with_travel(base: SceneConfig, max_insertion: float) -> SceneConfig:
 
 def fit_tip(wire: GuidewireConfig, lumen_radius: float, tip_fill: float = 0.85,
             where: str = "the vessel") -> GuidewireConfig:
-    """Returns ``wire`` with its tip angle reduced until the pre-bent tip's lateral offset is
-    at most ``tip_fill`` × (``lumen_radius`` − wire radius).
+    """Returns ``wire`` with its tip angle (and any secondary curve's, in proportion) reduced
+    until the pre-bent tip's lateral offset is at most ``tip_fill`` × (``lumen_radius`` −
+    wire radius).
 
     Raises:
         SceneError: If the lumen is not wider than the wire.
@@ -142,14 +146,19 @@ def fit_tip(wire: GuidewireConfig, lumen_radius: float, tip_fill: float = 0.85,
     room = _room(wire, lumen_radius, tip_fill, where)
     if wire.tip_lateral_offset <= room:
         return wire
-    low, high = 0.0, wire.tip_angle  # bisection: the offset grows with the angle
+
+    def narrowed(angle: float) -> GuidewireConfig:
+        secondary = wire.secondary_angle * angle / wire.tip_angle if wire.tip_angle else 0.0
+        return dataclasses.replace(wire, tip_angle=angle, secondary_angle=secondary)
+
+    low, high = 0.0, wire.tip_angle  # bisection: the offset grows with the angles
     while high - low > 1e-5:
         middle = 0.5 * (low + high)
-        if dataclasses.replace(wire, tip_angle=middle).tip_lateral_offset > room:
+        if narrowed(middle).tip_lateral_offset > room:
             high = middle
         else:
             low = middle
-    return dataclasses.replace(wire, tip_angle=low)
+    return narrowed(low)
 
 
 def fit_segments(wire: GuidewireConfig, bend_radius: float, lumen_radius: float,

@@ -31,7 +31,7 @@ from importlib import resources
 from typing import Any, TypeVar
 
 from sim4endor.errors import Sim4EndoRError
-from sim4endor.models.guidewire import INCH, GuidewireConfig
+from sim4endor.models.guidewire import INCH, SECONDARY_CURVE_LENGTH, GuidewireConfig
 
 #: The preset that reproduces the paper (``GuidewireConfig()``).
 PAPER = "paper"
@@ -42,6 +42,14 @@ PAPER = "paper"
 SHAPE_LENGTH_RANGE = (0.001, 0.005)
 #: Shape angles of an angled tip (rad).
 SHAPE_ANGLE_RANGE = (math.radians(30.0), math.radians(90.0))
+#: Where a secondary curve may lie (m from the distal end to its middle) and how far it
+#: bends (rad). "The primary curve should match the greatest angle to be negotiated, whereas
+#: the secondary curve is chosen to match the size of the vessel" (*Interventional Cardiology*,
+#: Wiley, an edited textbook, ch. 5 on coronary hardware, beside its Fig. 5.9; Mishra & Bahl,
+#: Indian Heart J 2009;61:275-280: a 2 mm primary curve at 45-60°, "sometimes even a proximal
+#: secondary curve"): a few millimetres behind the tip, about a proximal coronary's diameter.
+SECONDARY_DISTANCE_RANGE = (0.004, 0.010)
+SECONDARY_ANGLE_RANGE = (math.radians(15.0), math.radians(60.0))
 #: The "J": a 3 mm arc curled through 150°, the tip pointing back at the shaft's side.
 J_LENGTH = 0.003
 J_ANGLE = math.radians(150.0)
@@ -76,34 +84,62 @@ class WireCatalogueError(Sim4EndoRError, ValueError):
 
 @dataclass(frozen=True)
 class TipShape:
-    """The shape a cardiologist bends into the wire's tip: a circular arc.
+    """The shape a cardiologist bends into the wire's tip: a circular arc (the primary curve),
+    optionally with a secondary curve behind it, in the same plane and to the same side.
 
     Attributes:
         length: Shaped length of the tip (m), 1–5 mm.
         angle: Total bend over that length (rad), 30–90°.
+        secondary_distance: Distance from the distal end to the middle of the secondary
+            curve (m), 4–10 mm and behind the tip; ignored without ``secondary_angle``.
+        secondary_angle: Bend of the secondary curve (rad), 15–60°; 0 (default): none.
     """
 
     length: float
     angle: float
+    secondary_distance: float = 0.0
+    secondary_angle: float = 0.0
 
     def __post_init__(self) -> None:
-        low, high = SHAPE_LENGTH_RANGE
-        if not (math.isfinite(self.length) and low <= self.length <= high):
-            raise WireCatalogueError(
-                f"TipShape.length must be {low * 1e3:g}–{high * 1e3:g} mm (in m: {low}–{high}), "
-                f"got {self.length!r} m."
-            )
-        low, high = SHAPE_ANGLE_RANGE
-        if not (math.isfinite(self.angle) and low - 1e-12 <= self.angle <= high + 1e-12):
-            raise WireCatalogueError(
-                f"TipShape.angle must be {math.degrees(low):g}–{math.degrees(high):g}° (in rad: "
-                f"{low:.4f}–{high:.4f}), got {self.angle!r} rad; for a J use tip='J'."
-            )
+        self._check("length", self.length, SHAPE_LENGTH_RANGE, "")
+        self._check("angle", self.angle, SHAPE_ANGLE_RANGE, "; for a J use tip='J'")
+        if self.secondary_angle:
+            self._check("secondary_angle", self.secondary_angle, SECONDARY_ANGLE_RANGE,
+                        "; 0 for none")
+            nearest, farthest = SECONDARY_DISTANCE_RANGE
+            self._check("secondary_distance", self.secondary_distance,
+                        (max(nearest, self.length + SECONDARY_CURVE_LENGTH / 2), farthest),
+                        f"; it lies behind the {self.length * 1e3:g} mm tip")
+
+    @staticmethod
+    def _check(field: str, value: float, bounds: tuple[float, float], hint: str) -> None:
+        """Raises :class:`WireCatalogueError` naming ``field`` unless ``value`` is in
+        ``bounds`` (angles in rad, lengths in m; the message gives degrees or mm too)."""
+        low, high = bounds
+        if math.isfinite(value) and low - 1e-12 <= value <= high + 1e-12:
+            return
+        if field.endswith("angle"):
+            rule = (f"{math.degrees(low):g}–{math.degrees(high):g}° (in rad: {low:.4f}–"
+                    f"{high:.4f})")
+            unit = "rad"
+        else:
+            rule, unit = f"{low * 1e3:g}–{high * 1e3:g} mm (in m: {low}–{high})", "m"
+        raise WireCatalogueError(f"TipShape.{field} must be {rule}, got {value!r} {unit}{hint}.")
+
+    def as_mapping(self) -> dict[str, float]:
+        """Plain data, as :func:`resolve` takes it back (and a run's exported policy.json
+        records it): ``length`` and ``angle``, and the secondary curve's fields if it has one."""
+        fields = dataclasses.asdict(self)
+        if not self.secondary_angle:
+            del fields["secondary_distance"], fields["secondary_angle"]
+        return fields
 
     @classmethod
-    def degrees(cls, length_mm: float, angle_deg: float) -> TipShape:
+    def degrees(cls, length_mm: float, angle_deg: float, secondary_distance_mm: float = 0.0,
+                secondary_angle_deg: float = 0.0) -> TipShape:
         """The shape from the units a cardiologist uses (mm and degrees)."""
-        return cls(length_mm * _MM, math.radians(angle_deg))
+        return cls(length_mm * _MM, math.radians(angle_deg), secondary_distance_mm * _MM,
+                   math.radians(secondary_angle_deg))
 
 
 @dataclass(frozen=True)
@@ -221,18 +257,23 @@ def shaped(wire: GuidewireConfig, tip: TipShape | str) -> GuidewireConfig:
     if isinstance(tip, str):
         tip = parse_tip(tip)
     if tip == "J":
-        return dataclasses.replace(wire, tip_length=J_LENGTH, tip_angle=J_ANGLE)
+        return dataclasses.replace(wire, tip_length=J_LENGTH, tip_angle=J_ANGLE,
+                                   secondary_distance=0.0, secondary_angle=0.0)
     if not isinstance(tip, TipShape):
         raise WireCatalogueError(
             f"tip must be a TipShape(length m, angle rad), 'J' or 'LENGTH_MM,ANGLE_DEG', "
             f"got {tip!r}."
         )
-    return dataclasses.replace(wire, tip_length=tip.length, tip_angle=tip.angle)
+    return dataclasses.replace(wire, tip_length=tip.length, tip_angle=tip.angle,
+                               secondary_distance=tip.secondary_distance,
+                               secondary_angle=tip.secondary_angle)
 
 
 def parse_tip(text: str) -> TipShape | str:
     """A tip shape as written on a command line or in a run's config: ``LENGTH_MM,ANGLE_DEG``
-    (``"3,75"``: the distal 3 mm bent through 75°) or ``"J"``.
+    (``"3,75"``: the distal 3 mm bent through 75°), the same followed by a secondary curve's
+    ``,DISTANCE_MM,ANGLE_DEG`` (``"2,60,7,40"``: and 40° centred 7 mm from the end), or
+    ``"J"``.
 
     Raises:
         WireCatalogueError: For any other text, or a shape outside :class:`TipShape`'s ranges.
@@ -240,18 +281,24 @@ def parse_tip(text: str) -> TipShape | str:
     if text.strip().upper() == "J":
         return "J"
     try:
-        length_mm, angle_deg = (float(part) for part in text.split(","))
+        numbers = [float(part) for part in text.split(",")]
     except ValueError:
+        numbers = []
+    if len(numbers) not in (2, 4):
         raise WireCatalogueError(
-            f"A tip shape is LENGTH_MM,ANGLE_DEG (e.g. 3,75) or J, got {text!r}."
-        ) from None
+            f"A tip shape is LENGTH_MM,ANGLE_DEG (e.g. 3,75), optionally followed by a "
+            f"secondary curve's DISTANCE_MM,ANGLE_DEG (e.g. 2,60,7,40), or J; got {text!r}."
+        )
     try:
-        return TipShape.degrees(length_mm, angle_deg)
+        return TipShape.degrees(*numbers)
     except WireCatalogueError:  # its message is in SI units; say it in the ones written
         (short, long), (low, high) = SHAPE_LENGTH_RANGE, SHAPE_ANGLE_RANGE
+        (near, far), (least, most) = SECONDARY_DISTANCE_RANGE, SECONDARY_ANGLE_RANGE
         raise WireCatalogueError(
             f"Tip shape {text!r}: the shaped length must be {short / _MM:g}-{long / _MM:g} mm "
-            f"and the angle {math.degrees(low):g}-{math.degrees(high):g} deg (or J)."
+            f"and the angle {math.degrees(low):g}-{math.degrees(high):g} deg (or J); a "
+            f"secondary curve {near / _MM:g}-{far / _MM:g} mm from the end, behind the tip, "
+            f"and {math.degrees(least):g}-{math.degrees(most):g} deg."
         ) from None
 
 
@@ -307,12 +354,14 @@ def resolve(wire: str | GuidewireConfig | Mapping[str, Any] | None) -> Guidewire
                 )
             fields["friction"] = coating_friction(coating)
         if isinstance(tip, Mapping):
-            if set(tip) != {"length", "angle"}:
+            shape_fields = {f.name for f in dataclasses.fields(TipShape)}
+            if not {"length", "angle"} <= set(tip) <= shape_fields:
                 raise WireCatalogueError(
-                    f"A wire's tip mapping needs exactly 'length' (m) and 'angle' (rad), got "
-                    f"{sorted(tip)}."
+                    f"A wire's tip mapping needs 'length' (m) and 'angle' (rad), and takes a "
+                    f"secondary curve's 'secondary_distance' (m) and 'secondary_angle' (rad); "
+                    f"got {sorted(tip)}."
                 )
-            tip = TipShape(float(tip["length"]), float(tip["angle"]))
+            tip = TipShape(**{key: float(value) for key, value in tip.items()})
         wire_config = dataclasses.replace(base, **fields)
         return wire_config if tip is None else shaped(wire_config, tip)
     raise WireCatalogueError(

@@ -175,11 +175,11 @@ class EnvConfig:
         if self.tip is not None:
             from sim4endor.models.wires import parse_tip
 
-            # Plain data ({"length": m, "angle": rad} or "J"), as the wire catalogue takes it:
-            # these arguments are also written into an exported policy's policy.json.
+            # Plain data ({"length": m, "angle": rad, ...} or "J"), as the wire catalogue
+            # takes it: these arguments are also written into an exported policy's policy.json.
             tip = parse_tip(self.tip)
             wire = {"preset": self.wire,
-                    "tip": tip if isinstance(tip, str) else dataclasses.asdict(tip)}
+                    "tip": tip if isinstance(tip, str) else tip.as_mapping()}
         given = {"vessel": self.vessel, "target": self.target, "wire": wire,
                  "pool_seed": pool_seed, "pool_size": self.pool_size,
                  "target_weights": None if evaluation else self.target_weights}

@@ -77,9 +77,10 @@ class ExpertConfig:
             pushing on only winds up the command until the insertion limit ends the episode;
             the expert pulls back (``back_push``) instead, as a hand feels the resistance.
         tip_length: Arc length of the wire's pre-bent tip (m); the body axis is measured just
-            proximal of it. ``None`` (default): the tip of the wire in the physics, whatever
-            its preset (a 2 mm workhorse tip measured as a 5 mm one mixes the tip's bend into
-            the body axis).
+            proximal of it. ``None`` (default): the shaped part of the wire in the physics
+            (its tip, and a secondary curve behind it if it has one), whatever its preset (a
+            2 mm workhorse tip measured as a 5 mm one mixes the tip's bend into the body
+            axis).
         roll_offset_deg: Aim the tip's bend this far (about the body axis) from the path's
             turn; 0 aims at the turn. :class:`ProbingExpert` tries several.
         retry_offsets_deg: After each retreat from a wrong branch, and after ``retry_steps``
@@ -222,7 +223,7 @@ class CenterlineExpert:
                      toward: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The body axis, and the tip's heading and ``toward`` across it."""
         heading = _unit(points[-1] - points[-2])
-        body = self._body_axis(points, physics.tip_start_index())
+        body = self._body_axis(points, physics.shape_start_index())
         return body, heading - (heading @ body) * body, toward - (toward @ body) * body
 
     @staticmethod
@@ -236,10 +237,10 @@ class CenterlineExpert:
             self._neighbours[key] = anatomy.vessel.centerline.neighbours()
         return self._neighbours[key]
 
-    def _body_axis(self, points: FloatArray, tip_start: int) -> FloatArray:
-        """Direction of the wire just proximal of the pre-bent tip (which starts at vertex
-        ``tip_start`` unless the config gives its length)."""
-        base = tip_start
+    def _body_axis(self, points: FloatArray, shape_start: int) -> FloatArray:
+        """Direction of the wire just proximal of its shaped part (which starts at vertex
+        ``shape_start`` unless the config gives the tip's length)."""
+        base = shape_start
         if self.config.tip_length is not None:
             from_tip = np.cumsum(np.linalg.norm(np.diff(points[::-1], axis=0), axis=1))
             # 0.999: the tip's segments add up to tip_length only up to rounding.
