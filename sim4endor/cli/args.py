@@ -42,8 +42,9 @@ def _int(text: str) -> int:
 
 
 def tip_shape(text: str) -> str:
-    """A tip shape, ``LENGTH_MM,ANGLE_DEG`` or ``J`` (:func:`sim4endor.models.wires.parse_tip`),
-    kept as written: it is stored so in a run's config."""
+    """A tip shape, ``LENGTH_MM,ANGLE_DEG`` with an optional secondary curve's
+    ``,DISTANCE_MM,ANGLE_DEG``, or ``J`` (:func:`sim4endor.models.wires.parse_tip`), kept as
+    written: it is stored so in a run's config."""
     from sim4endor.models.wires import WireCatalogueError, parse_tip  # loads MuJoCo
 
     try:
