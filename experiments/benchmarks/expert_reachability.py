@@ -182,13 +182,12 @@ def main() -> None:
     if args.domain == "coronary":
         wire: str | dict[str, object] = args.wire
         if args.tip:
-            if len(args.tip) not in (2, 4):
-                parser.error(f"--tip takes 2 or 4 numbers, got {len(args.tip)}")
-            try:
-                tip = wires.TipShape.degrees(*args.tip)
+            try:  # the command line's own rules and messages (sim4endor ... --tip 5,90)
+                tip = wires.parse_tip(",".join(map(str, args.tip)))
             except wires.WireCatalogueError as error:
-                parser.error(str(error))
-            wire = {"preset": args.wire, "tip": tip.as_mapping()}
+                parser.error(f"--tip: {error}")
+            if isinstance(tip, wires.TipShape):  # numbers: never "J"
+                wire = {"preset": args.wire, "tip": tip.as_mapping()}
         coronary_reachability(args.first_seed, args.trees, wire, args.expert, args.workers,
                               args.starts, args.json)
         return

@@ -25,6 +25,8 @@ import numpy as np
 
 from sim4endor import suite
 from sim4endor.tasks.expert import CenterlineExpert
+from sim4endor.tasks.navigation import INLET_LABEL
+from sim4endor.tasks.tip_frame import PathToTarget
 from sim4endor.vessels.centerline import CenterlineGraph
 
 #: (tip, start seed, instants in s) of each row.
@@ -34,11 +36,10 @@ ROWS = (("5,90", 0, (4.9, 5.0, 5.1, 5.2)), ("2,60,7,40", 1, (9.55, 9.7, 9.85, 10
 def branch_plane(graph: CenterlineGraph, target: str) -> tuple[np.ndarray, np.ndarray]:
     """The junction where the path to ``target`` leaves its parent, and the in-plane axes
     (rows: along the parent, towards the branch)."""
-    from_target = graph.geodesic_from(graph.labels[target])
-    neighbours = graph.neighbours()
-    path = [int(graph.labels["inlet"])]
-    while from_target[path[-1]] > 0:
-        path.append(min(neighbours[path[-1]], key=lambda n: from_target[n]))
+    next_node = PathToTarget.to_node(graph, graph.labels[target]).next_node
+    path = [int(graph.labels[INLET_LABEL])]
+    while next_node[path[-1]] >= 0:
+        path.append(int(next_node[path[-1]]))
     degrees = graph.degrees()
     at = max(i for i, node in enumerate(path) if degrees[node] >= 3)
     nodes = graph.nodes
