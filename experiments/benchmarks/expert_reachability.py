@@ -30,11 +30,14 @@ interval, and how many targets were reached from every start and from at least o
 
 Usage:
     python experiments/benchmarks/expert_reachability.py [--episodes 8] [--json]
-    python experiments/benchmarks/expert_reachability.py --domain coronary --trees 20 --tip 5 90
+    python experiments/benchmarks/expert_reachability.py --domain coronary --trees 20 \
+        --tip 2 60 7 40
     python experiments/benchmarks/expert_reachability.py --domain coronary --expert probing \
-        --tip 5 90 --workers 2 [--starts 3]
+        --tip 2 60 7 40 --workers 2 [--starts 3]
 
-Issue 15's figures are measured with the tip shaped 5 mm at 90° (docs/tasks/coronary.md).
+Issue 15's figures are measured with the tip shaped 2 mm at 60° and a secondary curve of 40°
+centred 7 mm from the end (docs/tasks/coronary.md, Measured, 2026-11-29, evening): the probing
+expert reaches 99 of the 100 held-out targets, the plain one 94.
 """
 
 from __future__ import annotations
