@@ -3,6 +3,8 @@ anatomy lies in space, and the route ahead that bends into the target's branch."
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -96,6 +98,12 @@ def test_route_ahead_stops_at_the_target():
     near_target = graph.project(graph.nodes[target] + 1e-4)
     points = path.points_ahead(near_target)
     np.testing.assert_allclose(points[-1], graph.nodes[target], atol=1e-12)
+    # The route's nodes from the inlet: one edge per step, each closer to the target.
+    route = path.route(graph.labels["inlet"])
+    assert route[0] == graph.labels["inlet"] and route[-1] == target
+    edges = {frozenset(map(int, edge)) for edge in graph.edges}
+    assert all(frozenset(step) in edges for step in itertools.pairwise(route))
+    assert np.all(np.diff(path.node_distances[route]) < 0)
 
 
 def test_unknown_observation_set_is_named():

@@ -62,11 +62,7 @@ class Junction:
 def path_to(graph: CenterlineGraph, target: str) -> list[int]:
     """The centerline nodes from the inlet to ``target`` (the route the ``path_ahead``
     observation follows)."""
-    next_node = PathToTarget.to_node(graph, graph.labels[target]).next_node
-    path = [graph.labels[INLET_LABEL]]
-    while next_node[path[-1]] >= 0:
-        path.append(int(next_node[path[-1]]))
-    return path
+    return PathToTarget.to_node(graph, graph.labels[target]).route(graph.labels[INLET_LABEL])
 
 
 def walk(graph: CenterlineGraph, neighbours: list[list[int]], start: int, first: int,

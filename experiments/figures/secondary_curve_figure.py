@@ -36,10 +36,8 @@ ROWS = (("5,90", 0, (4.9, 5.0, 5.1, 5.2)), ("2,60,7,40", 1, (9.55, 9.7, 9.85, 10
 def branch_plane(graph: CenterlineGraph, target: str) -> tuple[np.ndarray, np.ndarray]:
     """The junction where the path to ``target`` leaves its parent, and the in-plane axes
     (rows: along the parent, towards the branch)."""
-    next_node = PathToTarget.to_node(graph, graph.labels[target]).next_node
-    path = [int(graph.labels[INLET_LABEL])]
-    while next_node[path[-1]] >= 0:
-        path.append(int(next_node[path[-1]]))
+    path = PathToTarget.to_node(graph, graph.labels[target]).route(
+        int(graph.labels[INLET_LABEL]))
     degrees = graph.degrees()
     at = max(i for i, node in enumerate(path) if degrees[node] >= 3)
     nodes = graph.nodes

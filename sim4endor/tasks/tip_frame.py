@@ -57,6 +57,13 @@ class PathToTarget:
                     best[far], next_node[far] = via, near
         return cls(graph, distances, next_node)
 
+    def route(self, start: int) -> list[int]:
+        """The nodes from ``start`` to the target, both included, one step each."""
+        nodes = [start]
+        while self.next_node[nodes[-1]] >= 0:
+            nodes.append(int(self.next_node[nodes[-1]]))
+        return nodes
+
     def points_ahead(self, proj: Projection, count: int = PATH_POINTS,
                      spacing: float = PATH_SPACING) -> FloatArray:
         """Returns ``count`` points at ``spacing``, 2 ``spacing``, ... along the route from
