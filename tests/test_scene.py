@@ -190,6 +190,46 @@ def test_shaft_segments_are_cut_to_lie_in_the_tightest_bend_of_a_centerline() ->
         workhorse, _arc_graph(bend, 0.5 * workhorse.radius)) is workhorse
 
 
+def _junction_graph(parent: float, branch: float, flare: float = 1.5,
+                    angle: float = math.radians(85), spacing: float = 2e-4) -> CenterlineGraph:
+    """A straight parent of lumen radius ``parent`` (m) with a straight branch of radius
+    ``branch`` leaving its middle at ``angle``; the junction's node ``flare`` times wider
+    than the parent, as a centerline's inscribed sphere is there."""
+    run = np.arange(spacing, 0.01, spacing)
+    heading = np.array([math.cos(angle), math.sin(angle), 0.0])
+    points = np.vstack([np.column_stack([run - 0.01, 0 * run, 0 * run])[::-1], np.zeros((1, 3)),
+                        np.column_stack([run, 0 * run, 0 * run]), np.outer(run, heading)])
+    n = len(run)
+    radii = np.concatenate([np.full(n, parent), [flare * parent], np.full(n, parent),
+                            np.full(n, branch)])
+    chain = np.arange(2 * n)  # proximal parent, junction node n, distal parent
+    branch_nodes = np.arange(2 * n + 1, 3 * n)
+    edges = np.vstack([np.column_stack([chain, chain + 1]), [[n, 2 * n + 1]],
+                       np.column_stack([branch_nodes, branch_nodes + 1])])
+    return CenterlineGraph(points, radii, edges)
+
+
+def test_shaft_segments_are_cut_to_turn_into_a_narrow_branch() -> None:
+    workhorse = wires.preset("workhorse")
+    narrow = _junction_graph(0.00085, 0.00085)  # issue 15's sub-branch calibre
+    # Straight branches: nothing to fit within them.
+    assert scene.fit_segments_to_centerline(workhorse, narrow) is workhorse
+    fitted = scene.fit_segments_to_junctions(workhorse, narrow)
+    bend = scene.JUNCTION_BEND_RADII * 0.00085
+    expected = math.sqrt(8 * bend * 0.75 * (0.00085 - workhorse.radius))
+    # The branch's radius, read past the junction's flare (1.5 x the parent's at the node).
+    assert fitted.max_segment_length == pytest.approx(expected)
+    assert 0.0025 < fitted.max_segment_length < 0.003
+    # The narrower of the two vessels meeting decides.
+    assert scene.fit_segments_to_junctions(
+        workhorse, _junction_graph(0.002, 0.00085)).max_segment_length == pytest.approx(expected)
+    # Wide vessels (the phantoms' 2 mm) keep the wire's 5 mm; a branch no wider than the wire
+    # (a stenosis it does not pass) is not measured.
+    assert scene.fit_segments_to_junctions(workhorse, _junction_graph(0.002, 0.0016)) is workhorse
+    assert scene.fit_segments_to_junctions(
+        workhorse, _junction_graph(0.002, 0.5 * workhorse.radius)) is workhorse
+
+
 def test_config_for_vessel_keeps_the_phantoms_segments() -> None:
     from sim4endor import vessels
 

@@ -60,6 +60,13 @@ from sim4endor.vessels.manifest import MANIFEST_FILE
 SOFT_TIP_FILL = 6.0
 
 
+#: How tight a turn into a branch is taken to be, in radii of the narrowest vessel meeting at
+#: the junction (:func:`fit_segments_to_junctions`): the tightest bend a swept tube keeps its
+#: lumen through, as the coronary generator caps its bends (``max_curvature_ratio`` 0.4) and
+#: the ``coronary`` domain sizes its segments for its narrowest branch.
+JUNCTION_BEND_RADII = 2.5
+
+
 class SceneError(Sim4EndoRError, ValueError):
     """Raised when a wire cannot be placed in a vessel; the message names the fix."""
 
@@ -103,7 +110,8 @@ def config_for_vessel(
     Measured).
 
     The shaft segments are cut until each lies in every bend of the centerline
-    (:func:`fit_segments_to_centerline`); the shipped phantoms keep the wire's 5 mm.
+    (:func:`fit_segments_to_centerline`) and in the turn into every branch
+    (:func:`fit_segments_to_junctions`); the shipped phantoms keep the wire's 5 mm.
     """
     scene = fit_travel(vessel, base, margin)
     if scene.wire.core_profile is None:
@@ -111,7 +119,8 @@ def config_for_vessel(
     else:
         wire = fit_tip(scene.wire, vessel.manifest.inlet.radius, SOFT_TIP_FILL,
                        f"{vessel.name}'s inlet")
-    wire = fit_segments_to_centerline(wire, vessel.centerline)
+    wire = fit_segments_to_junctions(fit_segments_to_centerline(wire, vessel.centerline),
+                                     vessel.centerline)
     return dataclasses.replace(scene, wire=wire)
 
 
@@ -212,6 +221,41 @@ def fit_segments_to_centerline(wire: GuidewireConfig, graph: CenterlineGraph,
     if longest >= wire.max_segment_length:
         return wire
     return dataclasses.replace(wire, max_segment_length=longest)
+
+
+def fit_segments_to_junctions(wire: GuidewireConfig, graph: CenterlineGraph,
+                              fill: float = 0.75) -> GuidewireConfig:
+    """Returns ``wire`` with its shaft segments short enough to turn into every branch of
+    ``graph``: :func:`fit_segments` with each junction taken as a bend of
+    :data:`JUNCTION_BEND_RADII` radii of the narrowest vessel meeting there.
+
+    A centerline turns into a branch at a node, so :func:`fit_segments_to_centerline`, which
+    measures chords within branches, cannot see how tight the turn is; and a chord measured
+    across the junction's node lies on the kink, missing the lumen's flare, and would allow
+    only 1.1-2.5 mm where 2.5 mm segments pass. Where two 0.85 mm vessels meet at 85°
+    (a tree of issue 15's calibre, ``coronary_tree`` seed 3103), 5 mm segments jammed across
+    the junction at the driver's 0.5 N push limit with 0.01 N on the tip; 2.5 mm segments
+    reached the branch in 9.7 s (docs/tasks/coronary.md, 2026-11-29, evening). Vessels of
+    1.4 mm radius or more (the shipped phantoms) keep a 5 mm segment. Each vessel's radius is
+    read one junction radius from the junction, past the flare; one no wider than the wire
+    (a stenosis the wire does not pass) is not measured.
+    """
+    neighbours = graph.neighbours()
+    narrowest = math.inf
+    for chain in branch_chains(graph):
+        for end in (chain, chain[::-1]):
+            if len(neighbours[end[0]]) < 3:
+                continue
+            points = graph.nodes[end]
+            arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0),
+                                                                  axis=1))])
+            past_flare = min(int(np.searchsorted(arc, graph.radii[end[0]])), len(end) - 1)
+            radius = float(graph.radii[end[past_flare]])
+            if radius > wire.radius:
+                narrowest = min(narrowest, radius)
+    if math.isinf(narrowest):
+        return wire
+    return fit_segments(wire, JUNCTION_BEND_RADII * narrowest, narrowest, fill)
 
 
 def _chords_fit(points: np.ndarray, rooms: np.ndarray, arc: np.ndarray, length: float) -> bool:
