@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim4endor.vessels.centerline import CenterlineError, CenterlineGraph
+from sim4endor.vessels.centerline import CenterlineError, CenterlineGraph, arc_lengths
 
 
 def y_graph(spacing: float = 1e-3) -> CenterlineGraph:
@@ -138,3 +138,8 @@ def test_malformed_graphs_are_rejected(kwargs, message) -> None:
 def test_missing_file_names_the_path(tmp_path) -> None:
     with pytest.raises(CenterlineError, match="No centerline file"):
         CenterlineGraph.load(tmp_path / "nope.json")
+
+
+def test_arc_lengths_run_along_the_polyline() -> None:
+    points = np.array([[0.0, 0.0, 0.0], [0.003, 0.0, 0.0], [0.003, 0.004, 0.0]])
+    np.testing.assert_allclose(arc_lengths(points), [0.0, 0.003, 0.007])

@@ -35,7 +35,7 @@ from sim4endor.models.guidewire import (
 )
 from sim4endor.vessels import CENTERLINE_FILE, Vessel
 from sim4endor.vessels.axis import branch_chains
-from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.centerline import CenterlineGraph, arc_lengths
 from sim4endor.vessels.manifest import MANIFEST_FILE
 
 #: How wide a tapered-core wire's pre-bent tip may be, in (inlet bore radius − wire radius),
@@ -210,7 +210,7 @@ def fit_segments_to_centerline(wire: GuidewireConfig, graph: CenterlineGraph,
     for chain in branch_chains(graph):
         points = graph.nodes[chain]
         rooms = fill * (graph.radii[chain] - wire.radius)
-        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        arc = arc_lengths(points)
         if _chords_fit(points, rooms, arc, longest):
             continue
         low, high = 0.0, longest
@@ -247,8 +247,7 @@ def fit_segments_to_junctions(wire: GuidewireConfig, graph: CenterlineGraph,
             if len(neighbours[end[0]]) < 3:
                 continue
             points = graph.nodes[end]
-            arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0),
-                                                                  axis=1))])
+            arc = arc_lengths(points)
             past_flare = min(int(np.searchsorted(arc, graph.radii[end[0]])), len(end) - 1)
             radius = float(graph.radii[end[past_flare]])
             if radius > wire.radius:

@@ -33,6 +33,7 @@ from sim4endor.models.guidewire import GuidewireConfig, segment_lengths
 from sim4endor.models.scene import SceneConfig
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.vessels import Vessel
+from sim4endor.vessels.centerline import arc_lengths
 
 FloatArray = NDArray[np.float64]
 
@@ -163,7 +164,7 @@ def tip_bend_direction(physics: GuidewirePhysics, back: float = 0.008) -> float:
     from world +z projected orthogonal to the axis (any fixed rule works for differences).
     """
     points = physics.wire_points()
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    arc = arc_lengths(points)
     s_tip = arc[-1]
 
     def at(s: float) -> FloatArray:

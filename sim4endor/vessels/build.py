@@ -35,7 +35,7 @@ from sim4endor._atomic import atomic_directory
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels import CENTERLINE_FILE, SCENE_FILE, Vessel, load
 from sim4endor.vessels.axis import AxisSamples, branch_chains, sample_axis
-from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.centerline import CenterlineGraph, arc_lengths
 from sim4endor.vessels.checks import (
     CheckParams,
     inlet_cap,
@@ -164,7 +164,7 @@ def _terminal_direction(graph: CenterlineGraph, node: int) -> np.ndarray:
     if chain[0] != node:
         chain = chain[::-1]
     points = graph.nodes[chain]
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    arc = arc_lengths(points)
     reach = min(float(arc[-1]), max(2.0 * float(graph.radii[node]), 1e-9))
     ahead = np.array([np.interp(reach, arc, points[:, k]) for k in range(3)])
     direction = ahead - graph.nodes[node]

@@ -27,6 +27,13 @@ IntArray = NDArray[np.int64]
 SCHEMA_VERSION = 1
 
 
+def arc_lengths(points: FloatArray) -> FloatArray:
+    """Returns the arc length (m) from the first of ``points`` (N, 3) to each, along the
+    polyline through them."""
+    steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    return np.concatenate([[0.0], np.cumsum(steps)])
+
+
 class CenterlineError(Sim4EndoRError, ValueError):
     """Raised for a malformed centerline graph; the message names the problem."""
 

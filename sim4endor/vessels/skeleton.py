@@ -30,7 +30,7 @@ from scipy.spatial import cKDTree
 
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.axis import branch_chains
-from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.centerline import CenterlineGraph, arc_lengths
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -186,7 +186,7 @@ def _assemble(
         # Voxel steps are ~1 pitch long, so sigma in samples is smoothing × radius / pitch.
         sigma = params.smoothing * float(np.median(r)) / pitch
         p, r = _smooth(p, sigma), _smooth(r, sigma)
-        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+        arc = arc_lengths(p)
         count = max(1, round(arc[-1] / (params.node_spacing * float(r.mean()))))
         s = np.linspace(0.0, arc[-1], count + 1)
         sp = np.column_stack([np.interp(s, arc, p[:, k]) for k in range(3)])

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.centerline import CenterlineGraph, arc_lengths
 from sim4endor.vessels.generators.paths import (
     Arc,
     FloatArray,
@@ -151,7 +151,7 @@ class BranchPlan:
     def sample(self, spacing: float) -> TubeBranch:
         """Returns the branch sampled about every ``spacing`` metres."""
         points, _ = trace(self.start, self.segments, spacing)
-        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        arc = arc_lengths(points)
         knots = [(0.0, self.radius_start), *self.inlet_radii, (float(arc[-1]), self.radius_end)]
         radii = np.interp(arc, [a for a, _ in knots], [r for _, r in knots])
         if self.stenosis is not None:
