@@ -236,16 +236,16 @@ def fit_segments_to_junctions(wire: GuidewireConfig, graph: CenterlineGraph,
     (a tree of issue 15's calibre, ``coronary_tree`` seed 3103), 5 mm segments jammed across
     the junction at the driver's 0.5 N push limit with 0.01 N on the tip; with this rule's
     2.93 mm the probing expert reached all 64 episodes of eight such trees, against 60
-    (docs/tasks/coronary.md, 2026-11-29, evening, and 2026-12-01). Vessels of
-    1.4 mm radius or more (the shipped phantoms) keep a 5 mm segment. Each vessel's radius is
-    read one junction radius from the junction, past the flare; one no wider than the wire
-    (a stenosis the wire does not pass) is not measured.
+    (docs/tasks/coronary.md, 2026-11-29, evening, and 2026-12-01). With a 0.014 in wire,
+    vessels of 1.4 mm radius or more (the shipped phantoms) keep a 5 mm segment. Each
+    vessel's radius is read one junction radius from the junction, past the flare; one no
+    wider than the wire (a stenosis the wire does not pass) is not measured.
     """
-    neighbours = graph.neighbours()
+    degrees = graph.degrees()
     narrowest = math.inf
     for chain in branch_chains(graph):
         for end in (chain, chain[::-1]):
-            if len(neighbours[end[0]]) < 3:
+            if degrees[end[0]] < 3:
                 continue
             points = graph.nodes[end]
             arc = arc_lengths(points)
