@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from dm_control.rl import control
 
-from sim4endor import suite
+from sim4endor import suite, vessels
 from sim4endor.tasks.expert import (
     FIXED_AIM,
     CenterlineExpert,
@@ -324,12 +324,15 @@ def _reachability_script():
     """experiments/benchmarks/expert_reachability.py as a module (it is a script, not part of
     the package)."""
     import importlib.util
+    import sys
     from pathlib import Path
 
     path = Path(__file__).resolve().parents[1] / "experiments/benchmarks/expert_reachability.py"
     spec = importlib.util.spec_from_file_location("expert_reachability", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
+    # The importlib recipe: its dataclasses look their module up in sys.modules.
+    sys.modules[spec.name] = module
     spec.loader.exec_module(module)
     return module
 
@@ -337,10 +340,10 @@ def _reachability_script():
 def test_reachability_starts_summary() -> None:
     """With several starts per target the benchmark reports the episode rate's Wilson
     interval and the targets reached from every start and from any."""
-    rows = [{"seed": seed, "target": target, "start": start, "outcome": outcome}
-            for seed, target, outcomes in ((1000, "D1", ("success", "timeout")),
-                                           (1000, "D2", ("success", "success")),
-                                           (1001, "AM", ("tip_force", "timeout")))
+    rows = [{"tree": tree, "target": target, "start": start, "outcome": outcome}
+            for tree, target, outcomes in (("left_1000", "D1", ("success", "timeout")),
+                                           ("left_1000", "D2", ("success", "success")),
+                                           ("right_1001", "AM", ("tip_force", "timeout")))
             for start, outcome in enumerate(outcomes)]
     summary = _reachability_script().starts_summary(rows)
     assert summary["targets"] == 3
@@ -349,3 +352,17 @@ def test_reachability_starts_summary() -> None:
     low, high = summary["success_rate_ci95"]
     # 3 of 6: the Wilson interval is 0.5 -+ 0.312 (z = 1.96), symmetric about the rate.
     assert low == pytest.approx(0.188, abs=1e-3) and high == pytest.approx(0.812, abs=1e-3)
+
+
+def test_reachability_runs_vessel_folders_as_a_user_loads_them() -> None:
+    """``--domain vessel``: a case per target of the folder, loaded through the ``vessel``
+    domain with the wire given; the expert reaches the simplified phantom's target A."""
+    script = _reachability_script()
+    folder = vessels.load("simplified_phantom").root
+    cases = script.vessel_cases(folder, "paper")
+    assert [case.task_kwargs["target"] for case in cases] == ["A", "B"]
+    assert all(case.domain == "vessel" and case.task_kwargs["vessel"] == str(folder)
+               and case.task_kwargs["wire"] == "paper" for case in cases)
+    row = script.case_episode((cases[0], "centerline", 0))
+    assert row["vessel"] == str(folder) and row["target"] == "A" and row["start"] == 0
+    assert row["outcome"] == "success"

@@ -20,9 +20,15 @@ two more numbers, ``DISTANCE_MM ANGLE_DEG``, add a secondary curve behind it.
 ``--workers N`` runs N coronary episodes at once (one process each); the rows come out in the
 same order and with the same results as with one.
 
+On vessel folders (``--domain vessel --vessels DIR ...``, ``sim4endor vessel build`` output)
+it runs every target of each folder as a user does: ``suite.load("vessel", "navigate",
+{"vessel": DIR, "target": NAME, "wire": ...})`` and ``run_expert(env, CenterlineExpert())``
+(or the probing expert), with the same ``--wire``, ``--tip``, ``--workers`` and ``--starts``.
+
 ``--starts K`` runs every coronary target from K starts instead of one. Start 0 is the
 single-start run's (the env's random state seeded with the tree's seed); start k draws the
-initial roll (±30°) and insertion (0-1 mm) from seed ``tree seed + k * START_STRIDE``. A single
+initial roll (±30°) and insertion (0-1 mm) from seed ``tree seed + k * START_STRIDE`` (a vessel
+folder's start 0 is seed 0). A single
 episode can flip on a difference far below anything a user would call a change (0.0005° of tip
 angle, docs/tasks/coronary.md), so one start per target counts each target as 0 or 1 of a
 probability: the summary then gives the success rate over all episodes with its 95 % Wilson
@@ -34,6 +40,8 @@ Usage:
         --tip 2 60 7 40
     python experiments/benchmarks/expert_reachability.py --domain coronary --expert probing \
         --tip 2 60 7 40 --workers 2 [--starts 3]
+    python experiments/benchmarks/expert_reachability.py --domain vessel --vessels DIR ... \
+        --tip 2 60 7 40 --workers 2 --starts 2
 
 Issue 15's figures are measured with the tip shaped 2 mm at 60° and a secondary curve of 40°
 centred 7 mm from the end (docs/tasks/coronary.md, Measured, 2026-11-29, evening): the probing
@@ -45,12 +53,16 @@ from __future__ import annotations
 import argparse
 import collections
 import multiprocessing
+from dataclasses import dataclass
+from multiprocessing.pool import Pool
+from pathlib import Path
 from typing import cast
 
 from scipy.stats import binomtest
 
 from sim4endor import _json as strict_json
-from sim4endor import suite
+from sim4endor import suite, vessels
+from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import wires
 from sim4endor.tasks.expert import CenterlineExpert, ProbingExpert, run_expert
 
@@ -85,16 +97,33 @@ def reachability(domain: str, task: str, episodes: int,
     }
 
 
-def coronary_episode(job: tuple[int, str, str | dict[str, object], str, int]
-                     ) -> dict[str, object]:
-    """Runs one expert episode from start ``job[4]`` on target ``job[1]`` of coronary tree
-    ``job[0]``; its row."""
-    seed, target, wire, expert_name, start = job
-    env = suite.load("coronary", "navigate", {"pool_seed": seed, "pool_size": 1, "wire": wire,
-                                              "random": seed + start * START_STRIDE,
-                                              "target": target})
+@dataclass(frozen=True)
+class Case:
+    """One target of one anatomy, run from every start.
+
+    Attributes:
+        domain: The suite domain (``coronary`` or ``vessel``); the task is ``navigate``.
+        task_kwargs: Its task arguments, without ``random``.
+        seed: The env's random state at start 0; start k draws its own from ``seed + k *
+            START_STRIDE``.
+        labels: What the case's rows carry besides the tree's name, the target and the start
+            (the tree's seed, or the vessel folder).
+    """
+
+    domain: str
+    task_kwargs: dict[str, object]
+    seed: int
+    labels: dict[str, object]
+
+
+def case_episode(job: tuple[Case, str, int]) -> dict[str, object]:
+    """Runs one expert episode: ``job`` is (case, expert name, start); its row."""
+    case, expert_name, start = job
+    env = suite.load(case.domain, "navigate",
+                     {**case.task_kwargs, "random": case.seed + start * START_STRIDE})
     info = run_expert(env, EXPERTS[expert_name]())
-    row = {"seed": seed, "tree": env.task.anatomy.vessel.name, "target": target, "start": start,
+    row = {**case.labels, "tree": env.task.anatomy.vessel.name,
+           "target": case.task_kwargs["target"], "start": start,
            "outcome": "success" if info["is_success"] else str(info["failure"] or "timeout"),
            "time_s": round(env.physics.time(), 2),
            "distance_mm": round(float(info["manifold_distance"]) * 1e3, 1)}
@@ -102,12 +131,22 @@ def coronary_episode(job: tuple[int, str, str | dict[str, object], str, int]
     return row
 
 
-def tree_targets(seed: int, wire: str | dict[str, object]) -> list[str]:
-    """The distal targets of coronary tree ``seed`` (builds and caches the tree)."""
-    env = suite.load("coronary", "navigate", {"pool_seed": seed, "pool_size": 1, "wire": wire})
+def coronary_cases(seed: int, wire: str | dict[str, object]) -> list[Case]:
+    """One case per distal target of coronary tree ``seed`` (builds and caches the tree)."""
+    tree = {"pool_seed": seed, "pool_size": 1, "wire": wire}
+    env = suite.load("coronary", "navigate", tree)
     targets = sorted(env.task.anatomy.vessel.targets)
     env.close()
-    return targets
+    return [Case("coronary", {**tree, "target": target}, seed, {"seed": seed})
+            for target in targets]
+
+
+def vessel_cases(folder: Path, wire: str | dict[str, object]) -> list[Case]:
+    """One case per target of a vessel folder (``sim4endor vessel build`` output), through the
+    ``vessel`` domain as a user loads it; start 0 is the env seeded with 0."""
+    targets = sorted(vessels.load(folder).targets)
+    return [Case("vessel", {"vessel": str(folder), "target": target, "wire": wire}, 0,
+                 {"vessel": str(folder)}) for target in targets]
 
 
 def starts_summary(rows: list[dict[str, object]]) -> dict[str, object]:
@@ -115,7 +154,7 @@ def starts_summary(rows: list[dict[str, object]]) -> dict[str, object]:
     (tree, target) pairs were reached from every start and from at least one."""
     reached: dict[tuple[object, object], list[bool]] = collections.defaultdict(list)
     for row in rows:
-        reached[row["seed"], row["target"]].append(row["outcome"] == "success")
+        reached[row["tree"], row["target"]].append(row["outcome"] == "success")
     successes = sum(sum(r) for r in reached.values())
     interval = binomtest(successes, len(rows)).proportion_ci(0.95, method="wilson")
     return {"success_rate_ci95": [interval.low, interval.high], "targets": len(reached),
@@ -123,34 +162,26 @@ def starts_summary(rows: list[dict[str, object]]) -> dict[str, object]:
             "targets_reached_any_start": sum(any(r) for r in reached.values())}
 
 
-def coronary_reachability(first_seed: int, trees: int, wire: str | dict[str, object],
-                          expert_name: str, workers: int, starts: int, as_json: bool) -> None:
-    """Runs the expert from ``starts`` starts on every distal target of ``trees`` coronary
-    trees, an episode per worker process at a time (spawned: CoACD's OpenMP does not survive
-    a fork)."""
-    seeds = range(first_seed, first_seed + trees)
+def cases_reachability(pool: Pool, cases: list[Case], expert_name: str, starts: int,
+                       as_json: bool, summary: dict[str, object], name: str) -> None:
+    """Runs the expert from ``starts`` starts on every case, an episode per process of
+    ``pool`` at a time, printing each episode's row and then ``summary`` (named ``name`` in
+    text) with the counts."""
     rows: list[dict[str, object]] = []
-    with multiprocessing.get_context("spawn").Pool(workers) as pool:
-        targets = pool.starmap(tree_targets, [(seed, wire) for seed in seeds])
-        jobs = [(seed, target, wire, expert_name, start)
-                for seed, names in zip(seeds, targets, strict=True) for target in names
-                for start in range(starts)]
-        for row in pool.imap(coronary_episode, jobs):
-            rows.append(row)
-            print(strict_json.dumps(row) if as_json else
-                  f"{row['tree']} {row['target']} (start {row['start']}): {row['outcome']} at "
-                  f"{row['time_s']} s, D {row['distance_mm']} mm", flush=True)
+    jobs = [(case, expert_name, start) for case in cases for start in range(starts)]
+    for row in pool.imap(case_episode, jobs):
+        rows.append(row)
+        print(strict_json.dumps(row) if as_json else
+              f"{row['tree']} {row['target']} (start {row['start']}): {row['outcome']} at "
+              f"{row['time_s']} s, D {row['distance_mm']} mm", flush=True)
     outcomes = collections.Counter(str(row["outcome"]) for row in rows)
     total = len(rows)
-    summary: dict[str, object] = {
-        "domain": "coronary", "wire": wire, "expert": EXPERTS[expert_name].__name__,
-        "trees": trees, "first_seed": first_seed, "starts": starts, "episodes": total,
-        "successes": outcomes["success"], "success_rate": outcomes["success"] / total,
-        "outcomes": dict(outcomes)}
+    summary = {**summary, "expert": EXPERTS[expert_name].__name__, "starts": starts,
+               "episodes": total, "successes": outcomes["success"],
+               "success_rate": outcomes["success"] / total, "outcomes": dict(outcomes)}
     if starts > 1:
         summary |= starts_summary(rows)
-    text = (f"coronary ({wire} wire, {summary['expert']}, {trees} trees from seed "
-            f"{first_seed}, {starts} start(s) per target): "
+    text = (f"{name} ({summary['expert']}, {starts} start(s) per target): "
             f"{outcomes['success']}/{total} episodes reached "
             f"({outcomes['success'] / total:.0%}); outcomes {dict(outcomes)}")
     if starts > 1:
@@ -165,24 +196,29 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=8, help="seeded episodes per task")
     parser.add_argument("--json", action="store_true", help="one JSON line per task")
-    parser.add_argument("--domain", choices=("phantoms", "coronary"), default="phantoms")
+    parser.add_argument("--domain", choices=("phantoms", "coronary", "vessel"),
+                        default="phantoms")
     parser.add_argument("--trees", type=int, default=20, help="coronary trees")
     parser.add_argument("--first-seed", type=int, default=1000, help="first coronary tree seed")
-    parser.add_argument("--wire", default="workhorse", help="wire preset (coronary)")
+    parser.add_argument("--vessels", type=Path, nargs="+", metavar="DIR",
+                        help="vessel folders (--domain vessel)")
+    parser.add_argument("--wire", default="workhorse", help="wire preset (coronary, vessel)")
     parser.add_argument("--tip", type=float, nargs="+", metavar="MM_OR_DEG",
-                        help="shape the wire's tip (coronary; default: the preset's): "
+                        help="shape the wire's tip (coronary, vessel; default: the preset's): "
                              "LENGTH_MM ANGLE_DEG, and a secondary curve's DISTANCE_MM "
                              "ANGLE_DEG if it has one")
     parser.add_argument("--expert", choices=tuple(EXPERTS), default="centerline")
     parser.add_argument("--workers", type=int, default=1,
-                        help="episodes run at once, one process each (coronary)")
+                        help="episodes run at once, one process each (coronary, vessel)")
     parser.add_argument("--starts", type=int, default=1,
-                        help="starts per coronary target (initial roll and insertion)")
+                        help="starts per target (coronary, vessel: initial roll and insertion)")
     args = parser.parse_args()
     for name in ("workers", "starts"):
         if getattr(args, name) < 1:
             parser.error(f"--{name} must be at least 1, got {getattr(args, name)}")
-    if args.domain == "coronary":
+    if (args.domain == "vessel") != bool(args.vessels):
+        parser.error("--vessels DIR ... goes with --domain vessel, and --domain vessel needs it")
+    if args.domain in ("coronary", "vessel"):
         wire: str | dict[str, object] = args.wire
         if args.tip:
             try:  # the command line's own rules and messages (sim4endor ... --tip 5,90)
@@ -191,8 +227,25 @@ def main() -> None:
                 parser.error(f"--tip: {error}")
             if isinstance(tip, wires.TipShape):  # numbers: never "J"
                 wire = {"preset": args.wire, "tip": tip.as_mapping()}
-        coronary_reachability(args.first_seed, args.trees, wire, args.expert, args.workers,
-                              args.starts, args.json)
+        # Spawned, not forked: CoACD's OpenMP (a tree's first build) does not survive a fork.
+        with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
+            if args.domain == "coronary":
+                seeds = range(args.first_seed, args.first_seed + args.trees)
+                trees = pool.starmap(coronary_cases, [(seed, wire) for seed in seeds])
+                summary = {"domain": "coronary", "wire": wire, "trees": args.trees,
+                           "first_seed": args.first_seed}
+                name = (f"coronary ({wire} wire, {args.trees} trees from seed "
+                        f"{args.first_seed})")
+            else:
+                try:
+                    trees = [vessel_cases(folder, wire) for folder in args.vessels]
+                except Sim4EndoRError as error:  # names the folder and what is wrong
+                    parser.error(f"--vessels: {error}")
+                summary = {"domain": "vessel", "wire": wire,
+                           "vessels": [str(folder) for folder in args.vessels]}
+                name = f"vessel folders ({wire} wire, {len(args.vessels)} folders)"
+            cases_reachability(pool, [case for tree in trees for case in tree], args.expert,
+                               args.starts, args.json, summary, name)
         return
     for domain, task in TASKS:
         row = reachability(domain, task, args.episodes, EXPERTS[args.expert]())
