@@ -14,9 +14,11 @@ import trimesh
 
 from sim4endor import vessels
 from sim4endor.cli import main
-from sim4endor.vessels.build import BuildParams, build_vessel
+from sim4endor.vessels import build as build_module
+from sim4endor.vessels.build import BuildError, BuildParams, build_vessel
 from sim4endor.vessels.centerline import CenterlineGraph
 from sim4endor.vessels.checks import check_folder
+from sim4endor.vessels.mjcf_writer import HULL_DIR, hull_mesh_name
 from sim4endor.vessels.walls import WallParams
 
 R = 1.5e-3
@@ -184,3 +186,24 @@ def test_open_ended_tube_with_extracted_centerline(tmp_path: Path) -> None:
     assert abs(float(vessel.inlet_direction[2])) == pytest.approx(1.0, abs=0.05)
     assert vessel.manifest.checks["lumen_open"] >= 0.99
     assert vessel.manifest.checks["wall_closed"] >= 0.95
+
+
+def test_a_model_mujoco_refuses_is_a_named_build_error_and_writes_nothing(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """If MuJoCo cannot compile what the build wrote, the build raises a BuildError naming
+    the vessel, the hull and MuJoCo's reason, not MuJoCo's traceback, and leaves no folder."""
+    write_meshes = build_module.write_meshes
+
+    def with_a_three_vertex_hull(folder: Path, hulls: list, lumen: trimesh.Trimesh) -> None:
+        write_meshes(folder, hulls, lumen)
+        three = trimesh.Trimesh([[0, 0, 0], [1e-3, 0, 0], [0, 1e-3, 0], [0, 1e-3, 0]],
+                                [[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]], process=False)
+        three.export(folder / HULL_DIR / f"{hull_mesh_name(0)}.stl", file_type="stl")
+
+    monkeypatch.setattr(build_module, "write_meshes", with_a_three_vertex_hull)
+    tube, graph = straight_tube()
+    out = tmp_path / "tube"
+    with pytest.raises(BuildError, match=rf"tube: MuJoCo cannot compile .*{hull_mesh_name(0)}"):
+        build_vessel(tube, name="tube", out_dir=out, centerline=graph, params=SERIAL,
+                     progress=False, cache=False, inlet=np.array([0.0, 0.0, -L / 2]))
+    assert not out.exists()

@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 
 from sim4endor.vessels.build import build_vessel
 from sim4endor.vessels.centerline import CenterlineGraph
-from sim4endor.vessels.skeleton import SkeletonParams, extract_centerline, voxelize
+from sim4endor.vessels.skeleton import SkeletonParams, _trace, extract_centerline, voxelize
 from sim4endor.vessels.slicer import SlicerCurveError, read_slicer_centerline
 
 
@@ -118,3 +118,21 @@ def test_slicer_errors_name_the_file(tmp_path: Path) -> None:
         (apart / f"c{k}.mrk.json").write_text(json.dumps(_markup(points, np.ones(5))))
     with pytest.raises(SlicerCurveError, match="separate pieces"):
         read_slicer_centerline([apart])
+
+
+def test_a_path_that_enters_at_a_skeleton_voxel_joins_without_a_loop() -> None:
+    """A traced path whose first voxel within reach of the skeleton is a skeleton voxel joins
+    there. It used to be joined to that voxel's nearest skeleton voxel, itself: an edge from
+    a voxel to itself, which the graph refuses. `vessel build` failed so on the lumen of a
+    tree of issue 15's coronary calibre ("Centerline edges must join two different existing
+    nodes"). Here a thin diagonal branch meets a diagonal trunk: its last voxel before the
+    trunk is sqrt(3) voxels from every trunk voxel, beyond the 1.5 voxels of reach."""
+    trunk = [(k, k, k) for k in range(21)]
+    branch = [(10 - j, 10 + j, 10 + j) for j in range(8, 0, -1)]  # from its end to the trunk
+    coords = np.array(branch + trunk, dtype=np.int64)
+    ones = np.ones(len(coords))
+    edges = _trace(coords, ones, ones, SkeletonParams())
+    assert not np.any(edges[:, 0] == edges[:, 1])
+    assert len(edges) == len(coords) - 1  # one tree over every voxel
+    pairs = {frozenset(map(int, edge)) for edge in edges}
+    assert frozenset({len(branch) - 1, len(branch) + 10}) in pairs  # joins at (10, 10, 10)

@@ -501,9 +501,17 @@ def build_vessel(
     )
     with atomic_directory(out_dir) as staging:
         write_meshes(staging, hulls, mesh)
-        write_vessel_mjcf(
-            staging, name=name, hull_count=len(hulls), inlet=inlet_pos, targets=target_points
-        )
+        try:
+            write_vessel_mjcf(
+                staging, name=name, hull_count=len(hulls), inlet=inlet_pos, targets=target_points
+            )
+        except ValueError as exc:  # MuJoCo's compiler, on a mesh the build wrote
+            reason = "; ".join(str(exc).strip().removeprefix("Error: ").splitlines())
+            raise BuildError(
+                f"{name}: MuJoCo cannot compile the vessel model built from "
+                f"{source or 'the mesh'} ({reason}); nothing was written. This is a fault of "
+                "the build, not of your mesh: please report it with the mesh."
+            ) from None
         lo, hi = mesh.bounds
         write_scene(
             staging,
