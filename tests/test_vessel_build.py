@@ -207,3 +207,17 @@ def test_a_model_mujoco_refuses_is_a_named_build_error_and_writes_nothing(
         build_vessel(tube, name="tube", out_dir=out, centerline=graph, params=SERIAL,
                      progress=False, cache=False, inlet=np.array([0.0, 0.0, -L / 2]))
     assert not out.exists()
+
+
+def test_a_target_apart_from_the_inlet_along_the_centerline_is_refused(tmp_path: Path) -> None:
+    """A centerline in two pieces, the target in the other one from the inlet, is refused
+    with the target named: no path leads there (the manifold distance is infinite)."""
+    tube, graph = straight_tube()
+    cut = np.array([edge for edge in graph.edges if set(edge) != {20, 21}])
+    two_pieces = CenterlineGraph(graph.nodes, graph.radii, cut)
+    with pytest.raises(BuildError, match="given is in 2 pieces, and end is not joined to the "
+                                         "inlet"):
+        build_vessel(tube, name="tube", out_dir=tmp_path / "tube", centerline=two_pieces,
+                     params=SERIAL, progress=False, cache=False,
+                     inlet=np.array([0.0, 0.0, -L / 2]), targets={"end": np.array([0, 0, L / 2])})
+    assert not (tmp_path / "tube").exists()

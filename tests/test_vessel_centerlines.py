@@ -136,3 +136,29 @@ def test_a_path_that_enters_at_a_skeleton_voxel_joins_without_a_loop() -> None:
     assert len(edges) == len(coords) - 1  # one tree over every voxel
     pairs = {frozenset(map(int, edge)) for edge in edges}
     assert frozenset({len(branch) - 1, len(branch) + 10}) in pairs  # joins at (10, 10, 10)
+
+
+def test_the_stored_lumen_of_a_coronary_calibre_tree_extracts_to_one_tree() -> None:
+    """Issue 15's user path: the lumen.stl that `vessel generate` stores for a tree of
+    coronary calibre (radii 0.8-2 mm), built again with `vessel build`, extracts to one tree
+    with the tree's vessel ends. On this one it did not: a path joined the root voxel, which
+    the trimming of the first path's hook had left out of the skeleton, and hung apart with
+    it (two pieces; the target in the other was 'inf' deep), after the self-loop above."""
+    import io
+
+    from sim4endor.vessels.axis import sample_axis
+    from sim4endor.vessels.build import _close_wall_holes, _orient_outward
+    from sim4endor.vessels.generators import CoronaryTreeConfig, coronary_tree
+    from sim4endor.vessels.meshio import capped, prepare_lumen
+
+    anatomy = coronary_tree(CoronaryTreeConfig(root_radius=0.002, min_radius=0.0008, levels=2),
+                            seed=3108)
+    # What the build stores as lumen.stl (float32), read back as a user's mesh.
+    built = _close_wall_holes(prepare_lumen(anatomy.lumen, units="m"), anatomy.centerline,
+                              "tree", max_perimeter=3.0)
+    stored = _orient_outward(built.mesh, sample_axis(anatomy.centerline)).export(file_type="stl")
+    prepared = prepare_lumen(trimesh.load(io.BytesIO(stored), file_type="stl"), units="m")
+    graph = extract_centerline(capped(prepared), SkeletonParams(),
+                               radius_hint=prepared.radius_estimate)
+    assert graph.num_components() == 1
+    assert len(graph.terminal_nodes()) == len(anatomy.centerline.terminal_nodes())

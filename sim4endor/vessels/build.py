@@ -258,6 +258,23 @@ def _labelled(
     )
 
 
+def _require_connected(graph: CenterlineGraph, name: str, extracted: bool) -> None:
+    """Raises :class:`BuildError` unless every labelled node is joined to the inlet along the
+    centerline: a target apart from it can be neither navigated to nor measured."""
+    component = graph.components()
+    inlet = component[graph.labels["inlet"]]
+    apart = sorted(label for label, node in graph.labels.items() if component[node] != inlet)
+    if apart:
+        source = "extracted from the mesh" if extracted else "given"
+        remedy = ("pass one with --centerline" if extracted else
+                  "join its curves, or check that each one reaches the next")
+        raise BuildError(
+            f"{name}: the centerline {source} is in {graph.num_components()} pieces, and "
+            f"{', '.join(apart)} {'is' if len(apart) == 1 else 'are'} not joined to the inlet "
+            f"along it; {remedy}."
+        )
+
+
 #: Files a build writes into a vessel folder besides ``<name>.xml`` and the hull meshes.
 _BUILD_FILES = (MANIFEST_FILE, CENTERLINE_FILE, SCENE_FILE, LUMEN_FILE, "README.md", "LICENSE")
 
@@ -424,6 +441,7 @@ def build_vessel(
     if not target_points:
         raise BuildError(f"{name}: no targets given and the centerline has no second vessel end.")
     graph = _labelled(centerline, inlet_node, target_points)
+    _require_connected(graph, name, extracted=given_centerline is None)
     inlet_dir = _terminal_direction(graph, inlet_node)
     inlet_pos = graph.nodes[inlet_node]
     inlet_radius = float(graph.radii[inlet_node])

@@ -162,6 +162,13 @@ class CenterlineGraph:
         """Returns the number of connected components (1 for a proper vessel tree)."""
         return int(connected_components(self._adjacency(self.edge_lengths()), directed=False)[0])
 
+    def components(self) -> IntArray:
+        """Returns each node's connected component (0, 1, ...)."""
+        return np.asarray(
+            connected_components(self._adjacency(self.edge_lengths()), directed=False)[1],
+            dtype=np.int64,
+        )
+
     def neighbours(self) -> list[list[int]]:
         """Returns, for every node, the nodes it shares an edge with (in edge order)."""
         neighbours: list[list[int]] = [[] for _ in range(self.num_nodes)]

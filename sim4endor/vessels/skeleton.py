@@ -224,8 +224,10 @@ def _trace(
     _, pred = dijkstra(weighted.tocsr(), directed=False, indices=root, return_predecessors=True)
     reachable = np.isfinite(from_root)
     uncovered = reachable.copy()
+    # The skeleton is what the paths traced so far keep: the first path's hook at the root is
+    # trimmed off like any vessel end's, so the root itself may not be in it, and a later path
+    # joined to it would hang on its own, apart from the tree.
     in_skeleton = np.zeros(len(coords), dtype=bool)
-    in_skeleton[root] = True
     tree = cKDTree(coords)
     edges: list[tuple[int, int]] = []
     first = True
