@@ -188,11 +188,11 @@ def test_the_wall_is_half_the_gap_where_another_lumen_is_nearer_than_its_thickne
 
 
 
-def test_a_hull_is_made_of_the_float32_points_its_mesh_stores() -> None:
-    """Hulls are built from their points as the STL stores them (float32). Four points of a
-    decomposed junction's sliver (2.8e-19 m^3), two of them equal in float32, made a hull that
-    MuJoCo read with three vertices and refused to compile; now they make none, nor does a
-    flat tetrahedron. A small real tetrahedron keeps its four float32 vertices."""
+def test_a_hull_flat_or_collapsing_in_float32_is_no_hull() -> None:
+    """Four points of a decomposed junction's sliver (2.8e-19 m^3), two of them equal in
+    float32 (the STL's precision), made a hull that MuJoCo read with three vertices and
+    refused to compile; now they make none, nor does a flat tetrahedron. A small real
+    tetrahedron keeps its four vertices as given."""
     sliver = np.array([[0.03474595, -0.00322442, -0.01295095],
                        [0.03475296, -0.00321836, -0.01294293],
                        [0.03475296 + 1e-12, -0.00321836, -0.01294293],
@@ -202,6 +202,6 @@ def test_a_hull_is_made_of_the_float32_points_its_mesh_stores() -> None:
     unit = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
     flat = corner + 1e-3 * unit * np.array([1, 1, 1e-7])  # 0.1 nm out of a 1 mm plane
     assert convex_hull(flat) is None
-    hull = convex_hull(corner + 5e-5 * unit)  # 50 micrometre edges
-    assert hull is not None and len(hull.vertices) == 4
-    assert np.array_equal(hull.vertices, hull.vertices.astype(np.float32))
+    small = corner + 5e-5 * unit  # 50 micrometre edges
+    hull = convex_hull(small)
+    assert hull is not None and np.array_equal(hull.vertices, small)

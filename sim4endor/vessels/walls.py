@@ -112,21 +112,20 @@ FLAT_VOLUME_FRACTION = 1e-6
 
 
 def convex_hull(points: FloatArray) -> Hull | None:
-    """Returns the convex hull of ``points`` as a hull mesh stores them (float32, the STL's
-    precision), or None when they are (nearly) flat (:data:`FLAT_VOLUME_FRACTION`).
-
-    Rounded first, so that the hull's vertices are the ones MuJoCo reads back: two vertices
-    distinct in float64 but equal in float32 left a four-vertex hull with three, which MuJoCo
-    refuses to compile ("at least 4 vertices required").
+    """Returns the convex hull of ``points``, or None when they are (nearly) flat
+    (:data:`FLAT_VOLUME_FRACTION`) or have fewer than four vertices as a hull mesh stores
+    them (float32, the STL's precision): two vertices distinct in float64 but equal in float32
+    left a four-vertex hull with three, which MuJoCo refuses to compile ("at least 4 vertices
+    required"). Every other hull is the one qhull gives for the points as they are, so that
+    builds stay bit for bit what they were.
     """
-    points = np.unique(np.asarray(points, dtype=np.float32), axis=0).astype(np.float64)
-    if len(points) < 4:
-        return None
     try:
         qh = ConvexHull(points)
     except (QhullError, ValueError):
         return None
     if qh.volume <= FLAT_VOLUME_FRACTION * float(np.ptp(points, axis=0).max()) ** 3:
+        return None
+    if len(np.unique(points[qh.vertices].astype(np.float32), axis=0)) < 4:
         return None
     used = np.unique(qh.simplices)
     remap = np.full(len(points), -1, dtype=np.int64)
