@@ -47,7 +47,7 @@ Issue 15's figures are measured with the tip shaped 2 mm at 60° and a secondary
 centred 7 mm from the end (docs/tasks/coronary.md, Measured, 2026-11-29, evening): the probing
 expert reaches 99 of the 100 held-out targets, the plain one 94. Its second check, on sixteen
 vessel folders of coronary calibre (radii 0.8-2 mm) that ``sim4endor vessel build`` made from
-their lumen meshes alone (``--domain vessel --starts 2``): the plain expert reaches 126 of 128
+their lumen meshes alone (``--domain vessel --starts 2``): the plain expert reaches 123 of 128
 episodes (Measured, 2026-12-02).
 """
 
