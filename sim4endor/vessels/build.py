@@ -269,7 +269,7 @@ def _require_connected(graph: CenterlineGraph, name: str, extracted: bool) -> No
         remedy = ("pass one with --centerline" if extracted else
                   "join its curves, or check that each one reaches the next")
         raise BuildError(
-            f"{name}: the centerline {source} is in {graph.num_components()} pieces, and "
+            f"{name}: the centerline {source} is in {int(component.max()) + 1} pieces, and "
             f"{', '.join(apart)} {'is' if len(apart) == 1 else 'are'} not joined to the inlet "
             f"along it; {remedy}."
         )

@@ -160,7 +160,7 @@ class CenterlineGraph:
 
     def num_components(self) -> int:
         """Returns the number of connected components (1 for a proper vessel tree)."""
-        return int(connected_components(self._adjacency(self.edge_lengths()), directed=False)[0])
+        return int(self.components().max()) + 1
 
     def components(self) -> IntArray:
         """Returns each node's connected component (0, 1, ...)."""

@@ -243,7 +243,7 @@ def _trace(
             dist, nearest = cKDTree(coords[members]).query(coords[path])
             inside = dist <= np.maximum(dbf[members[nearest]], 1.5)
             cut = int(np.argmax(inside))
-            path = path[: cut + 1] if cut > 0 else path[:1]
+            path = path[: cut + 1]
             join = int(members[nearest[cut]])
             if cut > 0 and join != path[-1]:  # a voxel of the skeleton joins as itself
                 path.append(join)
