@@ -48,7 +48,9 @@ centred 7 mm from the end (docs/tasks/coronary.md, Measured, 2026-11-29, evening
 expert reaches 99 of the 100 held-out targets, the plain one 94. Its second check, on sixteen
 vessel folders of coronary calibre (radii 0.8-2 mm) that ``sim4endor vessel build`` made from
 their lumen meshes alone (``--domain vessel --starts 2``): the plain expert reaches 123 of 128
-episodes (Measured, 2026-12-02).
+episodes with that tip, 128 of 128 with the tip shaped 3 mm at 75° and the same secondary
+curve (``--tip 3 75 7 40``, chosen on them), and 124 of 128 with it on sixteen fresh ones
+(Measured, 2026-12-02, later).
 """
 
 from __future__ import annotations
