@@ -6,10 +6,16 @@ wire and tip, for docs/tasks/coronary.md.
         --row workhorse 5,90 0 4.9,5.0,5.1,5.2 --row workhorse 2,60,7,40 1 9.55,9.7,9.85,10.0 \\
         --out docs/figures/secondary_curve_3005_am.png      # 2026-11-29, later
 
-    # 2026-12-02 (evening): DIR is tree 3130 built from its lumen mesh (coronary.md, Measured)
+    # 2026-12-02 (evening). DIR: `sim4endor vessel generate coronary_tree --seed 3130 --set
+    # root_radius=0.002 --set min_radius=0.0008 --set levels=2`, its lumen.stl then built
+    # with `sim4endor vessel build LUMEN --units m` and the generated folder's inlet and
+    # targets (coronary.md, Measured, 2026-12-02, later)
     python experiments/figures/ostium_figure.py --vessel DIR --target T2 \\
         --row workhorse 3,75,7,40 0 7.0,7.3,7.4,8.1 \\
         --row intermediate 3,75,7,40 0 21.9,21.95,22.1,23.0 \\
+        --title "T2 of tree 3130 built from its lumen mesh, plain expert, tip 3 mm/75° with 40° \\
+    7 mm back. Top, workhorse: the tip's end reaches the ostium (7.30 s) and flips back into \\
+    the parent. Bottom, intermediate: it reaches the ostium and the wire follows it in" \\
         --out docs/figures/wire_choice_3130_t2.png
 
 Each row is one episode of ``run_expert``'s ``CenterlineExpert`` on the ``vessel`` domain with
