@@ -108,24 +108,26 @@ def main() -> None:
         rows = [Row.parse(words) for words in args.row]
     except argparse.ArgumentTypeError as err:
         parser.error(str(err))
+    episodes = [shots(args.vessel, args.target, row) for row in rows]
+    graph = episodes[0][0]  # every row loads the same folder
+    origin, plane = branch_plane(graph, args.target)
+
+    def project(points: np.ndarray) -> np.ndarray:
+        return (points - origin) @ plane.T * 1e3
+
+    outline = []  # the centerline's edges near the junction, and their lumen radii (mm)
+    for i, j in graph.edges:
+        ends = project(graph.nodes[[i, j]])
+        if np.abs(ends).max() < 14:
+            outline.append((ends, graph.radii[i] * 1e3))
     width = max(len(row.times) for row in rows)
     fig, axes = plt.subplots(len(rows), width, figsize=(3.5 * width, 3.1 * len(rows)),
                              squeeze=False)
-    for row, row_axes in zip(rows, axes, strict=True):
-        graph, wires = shots(args.vessel, args.target, row)
-        origin, plane = branch_plane(graph, args.target)
-
-        def project(points: np.ndarray, origin: np.ndarray = origin,
-                    plane: np.ndarray = plane) -> np.ndarray:
-            return (points - origin) @ plane.T * 1e3
-
+    for row, (_, wires), row_axes in zip(rows, episodes, axes, strict=True):
         for ax, instant in zip(row_axes, row.times, strict=False):
-            for i, j in graph.edges:
-                ends = project(graph.nodes[[i, j]])
-                if np.abs(ends).max() < 14:
-                    ax.plot(ends[:, 0], ends[:, 1], "k-", lw=0.5)
-                    ax.add_patch(plt.Circle(ends[0], graph.radii[i] * 1e3, fill=False, lw=0.2,
-                                            color="gray"))
+            for ends, radius in outline:
+                ax.plot(ends[:, 0], ends[:, 1], "k-", lw=0.5)
+                ax.add_patch(plt.Circle(ends[0], radius, fill=False, lw=0.2, color="gray"))
             if instant in wires:
                 wire = project(wires[instant][-40:])
                 ax.plot(wire[:, 0], wire[:, 1], "r.-", ms=3, lw=1.2)
