@@ -10,6 +10,7 @@ from __future__ import annotations
 import collections
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -318,6 +319,38 @@ def test_the_pull_back_entry_brings_the_wire_into_a_sideways_branch_the_plain_ex
     while not timestep.last():
         timestep = env.step(entry(env.physics, env.task))
     assert env.task.step_info()["is_success"]
+
+
+@pytest.mark.slow
+def test_a_close_secondary_curve_takes_a_branch_off_the_inner_wall_of_the_parents_bend(
+        tmp_path: Path) -> None:
+    """About 40 s. Issue 15's second check as a user runs it: a tree of coronary calibre
+    (radii 0.8-2 mm) built from its lumen mesh alone, the plain expert, the workhorse. T2 of
+    tree 3130 (a 0.89 mm branch leaving the inner wall of its parent's bend at 88 degrees)
+    took no tip before 2026-12-02, night: with 3 mm at 75 degrees and 40 degrees 7 mm back the
+    shaft rides the outer wall and the tip flips back out of the ostium. Bent 2 mm at 90
+    degrees with 60 degrees 5 mm back, it enters from both starts (docs/tasks/coronary.md)."""
+    import trimesh
+
+    from sim4endor.vessels.build import build_vessel
+    from sim4endor.vessels.generators.command import generate_vessel
+
+    generated = generate_vessel(
+        "coronary_tree", out_dir=tmp_path / "generated", seed=3130, progress=False, cache=False,
+        overrides=("root_radius=0.002", "min_radius=0.0008", "levels=2"))
+    folder = tmp_path / "built"
+    build_vessel(trimesh.load(tmp_path / "generated" / "lumen.stl"), name="t3130",
+                 out_dir=folder, inlet=generated.inlet_position, targets=generated.targets,
+                 progress=False, cache=False)
+
+    def reached(tip: str, start: int) -> bool:
+        env = suite.load("vessel", "navigate", {
+            "vessel": str(folder), "target": "T2", "random": start * 1_000_000,
+            "wire": {"preset": "workhorse", "tip": tip}})
+        return bool(run_expert(env, CenterlineExpert())["is_success"])
+
+    assert not reached("3,75,7,40", 0)
+    assert reached("2,90,5,60", 0) and reached("2,90,5,60", 1)
 
 
 def _reachability_script():
