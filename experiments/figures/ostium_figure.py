@@ -18,6 +18,16 @@ wire and tip, for docs/tasks/coronary.md.
     the parent. Bottom, intermediate: it reaches the ostium and the wire follows it in" \\
         --out docs/figures/wire_choice_3130_t2.png
 
+    # 2026-12-02 (night), the same folder: two tip shapes on the workhorse
+    python experiments/figures/ostium_figure.py --vessel DIR --target T2 \\
+        --row workhorse 3,75,7,40 0 7.0,7.3,7.4,8.1 \\
+        --row workhorse 2,90,5,60 0 3.8,3.9,4.0,5.45 \\
+        --title "T2 of tree 3130 built from its lumen mesh, plain expert, workhorse wire. Top, \\
+    tip 3 mm/75° with 40° 7 mm back: the tip's end reaches the ostium (7.30 s) and flips back \\
+    into the parent. Bottom, tip 2 mm/90° with 60° 5 mm back: the hook points into the branch \\
+    as it passes the ostium (3.80 s) and the wire follows it in" \\
+        --out docs/figures/tip_shape_3130_t2.png
+
 Each row is one episode of ``run_expert``'s ``CenterlineExpert`` on the ``vessel`` domain with
 the row's wire preset, tip shape and start seed, drawn at the row's instants (s, multiples of
 the 50 ms control step). Drawn: the centerline and its lumen circles near the junction where
