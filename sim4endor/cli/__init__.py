@@ -65,8 +65,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"sim4endor {args.command}: error: {exc}", file=sys.stderr)  # noqa: T201
         return 2
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)  # noqa: T201
-        return 130
+        return _interrupted()
+    except ImportError as exc:
+        # Ctrl-C while a compiled extension initialises (MuJoCo's, first imported inside the
+        # command) comes out of the import as an ImportError raised from the interrupt.
+        if isinstance(exc.__cause__, KeyboardInterrupt):
+            return _interrupted()
+        raise
+
+
+def _interrupted() -> int:
+    """Says the command was interrupted; returns the shell's status for Ctrl-C."""
+    print("interrupted", file=sys.stderr)  # noqa: T201
+    return 130
 
 
 if __name__ == "__main__":
