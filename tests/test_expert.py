@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import collections
 import dataclasses
+import functools
 import math
 from pathlib import Path
 
@@ -376,12 +377,12 @@ def _expert_reaches(folder: Path, target: str, tip: str, start: int) -> bool:
     return bool(run_expert(env, CenterlineExpert())["is_success"])
 
 
+@functools.cache  # loaded once: the calibre tests ask for its start stride every episode
 def _reachability_script():
     """experiments/benchmarks/expert_reachability.py as a module (it is a script, not part of
     the package)."""
     import importlib.util
     import sys
-    from pathlib import Path
 
     path = Path(__file__).resolve().parents[1] / "experiments/benchmarks/expert_reachability.py"
     spec = importlib.util.spec_from_file_location("expert_reachability", path)
