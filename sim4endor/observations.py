@@ -25,6 +25,14 @@ DISTANCE_HORIZON = 0.1
 #: both entries still say "pressing hard"; the tip-force failure and the step's info read the
 #: forces themselves.
 FORCE_HORIZON = 5.0
+#: The ``stall_time`` entry counts the episode time since the tip last came this much (m)
+#: closer to the target than ever before in the episode, and saturates at ``STALL_HORIZON``
+#: (s). A tip that pushes on at an ostium it does not enter makes no such progress; the
+#: scripted expert counts 60 control steps (3 s) so before it tries another aim
+#: (``ExpertConfig.retry_steps``). The other entries describe one instant, so a memoryless
+#: policy cannot tell a first attempt at a side branch from its tenth.
+STALL_PROGRESS = 0.001
+STALL_HORIZON = 5.0
 
 #: Observation entries every task returns: the paper's state s_t = [p_t, v_t].
 DEFAULT_OBSERVATIONS: tuple[str, ...] = ("tip_position", "tip_velocity")
@@ -43,6 +51,7 @@ OPTIONAL_OBSERVATIONS: tuple[str, ...] = (
     "tip_velocity_local",
     "tip_force",
     "wall_force",
+    "stall_time",
 )
 #: What the tip sees in its own frame (:mod:`sim4endor.tasks.tip_frame`) plus scalars: it does
 #: not change when the anatomy is rotated or translated with the wire, so nothing in it names
@@ -68,6 +77,10 @@ OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     # 2026-11-28 reached 0/12 phantom episodes, 8/12 with the entry read as the bore's:
     # docs/results/generalisation). ``axis_offset`` still gives the wall's nearness in radii.
     "generalist_no_radius": tuple(name for name in _GENERALIST if name != "lumen_radius"),
+    # ... and the time since the last progress, so the policy can tell a stalled attempt at
+    # a side branch from a first one (see ``STALL_HORIZON``).
+    "generalist_stall": (*(name for name in _GENERALIST if name != "lumen_radius"),
+                         "stall_time"),
 }
 
 #: Unit and size of each observation entry (``wire_shape`` is 3 per wire vertex).
@@ -87,4 +100,5 @@ OBSERVATION_UNITS: dict[str, tuple[str, int | None]] = {
     "tip_velocity_local": ("m/s, tip frame", 3),
     "tip_force": ("N", 1),
     "wall_force": ("N", 1),
+    "stall_time": ("s", 1),
 }

@@ -34,6 +34,7 @@ entry                  shape      unit    meaning
 ``tip_velocity_local`` (3,)       m/s     opt-in: tip velocity, tip frame
 ``tip_force``          (1,)       N       opt-in: normal wall force on the pre-bent tip
 ``wall_force``         (1,)       N       opt-in: total normal wall force on the wire
+``stall_time``         (1,)       s       opt-in: time since the last 1 mm of progress
 =====================  =========  ======  =================================================
 
 Opt in with ``task_kwargs={"observations": ("target_position", ...)}``, or replace the whole

@@ -97,3 +97,64 @@ def test_extra_observations_reach_the_environment(phantom: str) -> None:
         assert env.observation_spec["observation"].shape == (7,)
     finally:
         env.close()
+
+
+def test_a_widened_checkpoint_acts_and_values_as_before_whatever_the_new_entry(
+        tmp_path: Path) -> None:
+    """experiments/generalist/widen_checkpoint.py appends zero-weight input columns: the
+    widened SAC actor and critics compute what the old ones did, for any value of the
+    appended ``stall_time``, and the result loads into a run of the wider set."""
+    import importlib.util
+
+    import torch
+    from tensordict import TensorDict
+    from torchrl.data import Bounded, Composite, Unbounded
+
+    from sim4endor.rl.algorithms import build_agent
+    from sim4endor.rl.checkpoint import Progress, load_checkpoint, save_checkpoint
+    from sim4endor.rl.config import apply_overrides, default_config
+
+    path = REPO / "experiments/generalist/widen_checkpoint.py"
+    spec = importlib.util.spec_from_file_location("widen_checkpoint", path)
+    assert spec is not None and spec.loader is not None
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+
+    action_spec = Bounded(-1.0, 1.0, shape=(2,))
+
+    def agent(observations: str):
+        config = apply_overrides(default_config("sac"), [f"env.observations={observations}",
+                                                         "network.hidden_sizes=[16]"])
+        dim = len(config.observation_scale())
+        built = build_agent(config, Composite(observation=Unbounded(shape=(dim,))),
+                            action_spec)
+        return built, dim
+
+    old, old_dim = agent("generalist_no_radius")
+    save_checkpoint(tmp_path / "old", old, Progress(frames=7), None)
+    state = torch.load(tmp_path / "old/checkpoint/state.pt", weights_only=True)
+    (tmp_path / "new/checkpoint").mkdir(parents=True)
+    torch.save(script.widen_state(state, [0.2]), tmp_path / "new/checkpoint/state.pt")
+    new, new_dim = agent("generalist_stall")
+    assert new_dim == old_dim + 1
+    assert load_checkpoint(tmp_path / "new", new) == Progress(frames=7)
+
+    torch.manual_seed(0)
+    observation = torch.randn(5, old_dim)
+    action = torch.rand(5, 2) * 2 - 1
+
+    def outputs(built, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        loss = built.loss
+        actor = TensorDict({"observation": obs}, batch_size=[5])
+        with loss.actor_network_params.to_module(loss.actor_network):
+            loc = loss.actor_network(actor)["loc"]
+        critic = TensorDict({"observation": obs, "action": action}, batch_size=[5])
+        with loss.qvalue_network_params[1].to_module(loss.qvalue_network):
+            value = loss.qvalue_network(critic)["state_action_value"]
+        return loc, value
+
+    before = outputs(old, observation)
+    for stall in (0.0, 1.5, 5.0):
+        wider = torch.cat([observation, torch.full((5, 1), stall)], dim=-1)
+        for was, now in zip(before, outputs(new, wider), strict=True):
+            torch.testing.assert_close(now, was)

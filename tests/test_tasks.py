@@ -10,7 +10,7 @@ import pytest
 from navigation_helpers import require_vessel
 
 from sim4endor import suite
-from sim4endor.observations import DISTANCE_HORIZON, FORCE_HORIZON
+from sim4endor.observations import DISTANCE_HORIZON, FORCE_HORIZON, STALL_HORIZON
 from sim4endor.rewards import RewardConfig
 from sim4endor.tasks import (
     InitialStateConfig,
@@ -217,6 +217,26 @@ def test_the_force_entries_saturate_but_the_info_does_not(
     assert obs["wall_force"][0] == min(force, FORCE_HORIZON)
     assert obs["tip_force"][0] == min(force / 10, FORCE_HORIZON)
     assert env.task.step_info()["wall_force"] == force
+
+
+def test_the_stall_entry_counts_the_time_since_the_last_progress() -> None:
+    """Pushing up the trunk is progress at every step; holding still is none, and the entry
+    grows by a control step each step until it saturates; pushing on again resets it."""
+    env = suite.load("simplified_phantom", "task_a",
+                     {"observations": ("stall_time",), "random": 0})
+    control_step = env.control_timestep()
+    assert env.reset().observation["stall_time"][0] == 0.0
+    for _ in range(5):
+        pushed = env.step(INSERT).observation["stall_time"][0]
+        assert pushed <= 2 * control_step  # 1 mm of progress takes one or two steps
+    held = [env.step([0.0, 0.0]).observation["stall_time"][0] for _ in range(4)]
+    np.testing.assert_allclose(np.diff(held), control_step)
+    for _ in range(round(STALL_HORIZON / control_step)):
+        saturated = env.step([0.0, 0.0]).observation["stall_time"][0]
+    assert saturated == STALL_HORIZON
+    for _ in range(3):
+        pushed = env.step(INSERT).observation["stall_time"][0]
+    assert pushed <= 2 * control_step
 
 
 def test_pixels_show_the_lumen_and_the_wire_without_opengl() -> None:

@@ -23,7 +23,13 @@ from numpy.typing import NDArray
 from sim4endor import rewards
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
-from sim4endor.observations import DISTANCE_HORIZON, FORCE_HORIZON, PATH_POINTS
+from sim4endor.observations import (
+    DISTANCE_HORIZON,
+    FORCE_HORIZON,
+    PATH_POINTS,
+    STALL_HORIZON,
+    STALL_PROGRESS,
+)
 from sim4endor.tasks import starts
 from sim4endor.tasks.anatomy import Anatomy, AnatomySource
 from sim4endor.tasks.config import NavigationConfig, TaskConfigError
@@ -147,6 +153,10 @@ class NavigationTask(base.Task):
         self._rotation = 0.0
         self._last_action = np.zeros(2)
         self._d_last = 0.0
+        # The closest approach to the target so far (m) and the episode time it was made (s),
+        # for the ``stall_time`` entry.
+        self._closest = math.inf
+        self._closest_time = 0.0
         self._max_insertion = math.inf
         self._max_rotation = math.inf
         self._evaluation: StepEvaluation | None = None
@@ -221,6 +231,8 @@ class NavigationTask(base.Task):
         else:
             self._start_off_path(physics, start.off_path_depth)
         self._d_last = self._distance(self.config.reward.metric)(physics.tip_position())
+        self._closest = self.manifold_distance()(physics.tip_position())
+        self._closest_time = physics.time()
         self._evaluation = None
 
     def _start_off_path(self, physics: control.Physics, depths: tuple[float, float]) -> None:
@@ -321,6 +333,8 @@ class NavigationTask(base.Task):
             tip_force = self._tip_force(physics)
             excess = lumen_excess(self._anatomy, tip, proj)
             push = physics.insertion_force()
+            if manifold < self._closest - STALL_PROGRESS:
+                self._closest, self._closest_time = manifold, physics.time()
         checks = {
             "instability": unstable,
             "tip_force": tip_force > term.max_tip_force,
@@ -399,6 +413,7 @@ class NavigationTask(base.Task):
             "tip_velocity_local": (3,),
             "tip_force": (1,),
             "wall_force": (1,),
+            "stall_time": (1,),
         }
         return collections.OrderedDict(
             (name, specs.Array(shapes[name], np.uint8 if name == "pixels" else np.float64, name))
@@ -445,6 +460,8 @@ class NavigationTask(base.Task):
             return np.array([min(self._tip_force(physics), FORCE_HORIZON)])
         if name == "wall_force":
             return np.array([min(physics.wall_contact_force(), FORCE_HORIZON)])
+        if name == "stall_time":
+            return np.array([min(physics.time() - self._closest_time, STALL_HORIZON)])
         assert view is not None  # get_observation computes it for these entries
         if name == "path_ahead":
             return view.path_ahead.reshape(-1)
