@@ -66,6 +66,7 @@ _GENERALIST: tuple[str, ...] = (
     "wall_force",
     "last_action",
 )
+_NO_RADIUS = tuple(name for name in _GENERALIST if name != "lumen_radius")
 #: Named observation sets (``task_kwargs={"observations": "generalist"}``), each used as it
 #: is, without the defaults.
 OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
@@ -76,11 +77,10 @@ OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     # coronary starts can read a wide lumen at the start as a cue to pull back (seed 2 of
     # 2026-11-28 reached 0/12 phantom episodes, 8/12 with the entry read as the bore's:
     # docs/results/generalisation). ``axis_offset`` still gives the wall's nearness in radii.
-    "generalist_no_radius": tuple(name for name in _GENERALIST if name != "lumen_radius"),
+    "generalist_no_radius": _NO_RADIUS,
     # ... and the time since the last progress, so the policy can tell a stalled attempt at
     # a side branch from a first one (see ``STALL_HORIZON``).
-    "generalist_stall": (*(name for name in _GENERALIST if name != "lumen_radius"),
-                         "stall_time"),
+    "generalist_stall": (*_NO_RADIUS, "stall_time"),
 }
 
 #: Unit and size of each observation entry (``wire_shape`` is 3 per wire vertex).

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from dm_control.rl import control
+from script_helpers import load_script
 
 from sim4endor import suite, vessels
 from sim4endor.tasks.expert import (
@@ -379,19 +380,8 @@ def _expert_reaches(folder: Path, target: str, tip: str, start: int) -> bool:
 
 @functools.cache  # loaded once: the calibre tests ask for its start stride every episode
 def _reachability_script():
-    """experiments/benchmarks/expert_reachability.py as a module (it is a script, not part of
-    the package)."""
-    import importlib.util
-    import sys
-
-    path = Path(__file__).resolve().parents[1] / "experiments/benchmarks/expert_reachability.py"
-    spec = importlib.util.spec_from_file_location("expert_reachability", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    # The importlib recipe: its dataclasses look their module up in sys.modules.
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    """experiments/benchmarks/expert_reachability.py as a module."""
+    return load_script("experiments/benchmarks/expert_reachability.py")
 
 
 def test_reachability_starts_summary() -> None:

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from script_helpers import load_script
 
 from sim4endor.rl.config import ALGORITHMS
 
@@ -104,8 +105,6 @@ def test_a_widened_checkpoint_acts_and_values_as_before_whatever_the_new_entry(
     """experiments/generalist/widen_checkpoint.py appends zero-weight input columns: the
     widened SAC actor and critics compute what the old ones did, for any value of the
     appended ``stall_time``, and the result loads into a run of the wider set."""
-    import importlib.util
-
     import torch
     from tensordict import TensorDict
     from torchrl.data import Bounded, Composite, Unbounded
@@ -114,11 +113,7 @@ def test_a_widened_checkpoint_acts_and_values_as_before_whatever_the_new_entry(
     from sim4endor.rl.checkpoint import Progress, load_checkpoint, save_checkpoint
     from sim4endor.rl.config import apply_overrides, default_config
 
-    path = REPO / "experiments/generalist/widen_checkpoint.py"
-    spec = importlib.util.spec_from_file_location("widen_checkpoint", path)
-    assert spec is not None and spec.loader is not None
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
+    script = load_script("experiments/generalist/widen_checkpoint.py")
 
     action_spec = Bounded(-1.0, 1.0, shape=(2,))
 

@@ -2,28 +2,19 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 import pytest
+from script_helpers import load_script
 
 from sim4endor.vessels.centerline import CenterlineGraph
-
-SCRIPT = Path(__file__).parents[1] / "experiments" / "benchmarks" / "side_branch_geometry.py"
 
 
 @pytest.fixture(scope="module")
 def script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("side_branch_geometry", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
+    return load_script("experiments/benchmarks/side_branch_geometry.py")
 
 
 def fork(angle_deg: float) -> CenterlineGraph:

@@ -25,6 +25,10 @@ import torch
 from sim4endor.observations import OBSERVATION_UNITS
 from sim4endor.rl.config import OBSERVATION_SCALES
 
+#: Entries that can be appended: a fixed size (not ``wire_shape`` or ``pixels``) and an input
+#: factor.
+_SIZES = {name: size for name, (_, size) in OBSERVATION_UNITS.items()
+          if size is not None and name in OBSERVATION_SCALES}
 #: First-layer parameters of every network, by key ending: their last dimension is the
 #: observation (followed by the action, for the critics).
 _FIRST_LAYER = ("net.0.weight", ".scale")
@@ -64,11 +68,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("source", type=Path, help="run folder with checkpoint/state.pt")
     parser.add_argument("destination", type=Path, help="new run folder (created)")
-    parser.add_argument("entries", nargs="+", choices=sorted(OBSERVATION_SCALES),
+    parser.add_argument("entries", nargs="+", choices=sorted(_SIZES),
                         metavar="ENTRY", help="observation entries appended to the set, in order")
     args = parser.parse_args()
     scales = [OBSERVATION_SCALES[name] for name in args.entries
-              for _ in range(OBSERVATION_UNITS[name][1] or 0)]
+              for _ in range(_SIZES[name])]
     state = torch.load(args.source / "checkpoint" / "state.pt", weights_only=True)
     out = args.destination / "checkpoint"
     out.mkdir(parents=True, exist_ok=False)
