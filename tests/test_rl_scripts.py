@@ -153,3 +153,67 @@ def test_a_widened_checkpoint_acts_and_values_as_before_whatever_the_new_entry(
         wider = torch.cat([observation, torch.full((5, 1), stall)], dim=-1)
         for was, now in zip(before, outputs(new, wider), strict=True):
             torch.testing.assert_close(now, was)
+
+
+def test_the_expert_takes_over_where_the_policy_is_stuck_and_finetuning_learns_it(
+        phantom: str, tmp_path: Path) -> None:
+    """experiments/generalist/takeover.py: a policy that never moves (its actor's output
+    layer zeroed) is stuck from the start, so the probing expert takes over after
+    ``stall_steps`` steps and its plan drives; finetuning on those steps moves the actor's
+    deterministic action towards the expert's where it took over and keeps it where the
+    policy acted itself, in a new run folder that loads as a run."""
+    import numpy as np
+    import torch
+    from tensordict import TensorDict
+    from torchrl.envs import ExplorationType, set_exploration_type
+
+    from sim4endor.rl.algorithms import build_agent
+    from sim4endor.rl.checkpoint import Progress, save_checkpoint
+    from sim4endor.rl.config import apply_overrides, default_config, save_config
+    from sim4endor.rl.envs import sim4endor_env
+    from sim4endor.rl.runs import load_agent
+
+    script = load_script("experiments/generalist/takeover.py")
+    config = apply_overrides(default_config("sac"), [f"env.domain={phantom}",
+                                                     "network.hidden_sizes=[16]"])
+    env = sim4endor_env(config.env, 0)
+    try:
+        agent = build_agent(config, env.observation_spec, env.action_spec)
+    finally:
+        env.close()
+    with torch.no_grad():
+        output = agent.actor.module[0].module[0].net[-1]
+        output.weight.zero_()
+        output.bias.zero_()  # loc 0: the mode is [0, 0], the wire stands still
+    run = tmp_path / "run"
+    save_config(config, run / "config.yaml")
+    save_checkpoint(run, agent, Progress(frames=5), None)
+
+    stall = 4
+    counts = script.collect(run, tmp_path / "data.npz", episodes=1, seed=0, stall_steps=stall,
+                            max_steps=stall + 12)
+    data = np.load(tmp_path / "data.npz")
+    takeover, action = data["takeover"], data["action"]
+    assert counts["steps"] == len(takeover) == stall + 12
+    assert counts["takeover_steps"] == int(takeover.sum()) > 0
+    assert not takeover[:stall].any() and takeover[stall]  # the policy's first steps, then
+    np.testing.assert_array_equal(action[~takeover], 0.0)  # the expert's
+    assert action[takeover][:, 0].max() > 0.0  # it pushes
+
+    new = tmp_path / "new"
+    script.finetune(run, new, [tmp_path / "data.npz"], steps=150, batch=8, lr=3e-3, seed=0)
+    _, tuned = load_agent(new)
+    observation = torch.as_tensor(data["observation"])
+    labels = torch.as_tensor(action).clamp(-script.LABEL_LIMIT, script.LABEL_LIMIT)
+
+    def error(built, rows: np.ndarray) -> float:
+        with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+            acted = built.actor(TensorDict({"observation": observation[rows]},
+                                           batch_size=[int(rows.sum())]))["action"]
+        return float(((acted - labels[rows]) ** 2).sum(-1).mean())
+
+    assert error(tuned, takeover) < 0.5 * error(agent, takeover)
+    assert error(tuned, ~takeover) < 0.05
+    assert (new / script.RECORD_FILE).is_file()
+    with pytest.raises(FileExistsError):
+        script.finetune(run, new, [tmp_path / "data.npz"], steps=1, batch=8, lr=3e-3, seed=0)

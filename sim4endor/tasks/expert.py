@@ -340,7 +340,9 @@ class ProbingExpert(CenterlineExpert):
         if not self._plan:
             stuck = self._backing_off == 1 or self._since >= self.probe.stall_steps
             if stuck and self._probes < self.probe.max_probes:
-                self._plan = self._probe_aims(physics, task)
+                self._probes += 1
+                self._since = 0
+                self._plan = self.plan(physics, task, self._closest)
                 if self._plan:
                     # Start afresh after the plan, as after a back-off: its closest approach
                     # is no wrong branch.
@@ -361,10 +363,15 @@ class ProbingExpert(CenterlineExpert):
                 return candidate
         return action  # every choice fails: the state is lost whatever the expert does
 
-    def _probe_aims(self, physics: GuidewirePhysics, task: NavigationTask) -> list[FloatArray]:
-        """The actions of the aim that gets closest, or [] if none gets closer than before."""
-        self._probes += 1
-        self._since = 0
+    def plan(self, physics: GuidewirePhysics, task: NavigationTask,
+             closest: float) -> list[FloatArray]:
+        """Probes every aim from the present state; returns the actions of the one that gets
+        closest to the target (up to its closest approach), or [] if none reaches it or gets
+        ``probe.min_gain`` closer than ``closest`` (m, the episode's closest approach).
+
+        It reads only the simulation, not the episode's history, so it can also take over
+        from another policy where that one is stuck (experiments/generalist/takeover.py).
+        """
         substeps = task.config.action.physics_steps(physics.timestep())
         aims: list[tuple[Policy, int]] = []
         for offset in self.probe.roll_offsets_deg:
@@ -378,11 +385,11 @@ class ProbingExpert(CenterlineExpert):
             aims.append((entry, self.probe.pull_back_horizon))
         best: tuple[bool, float, list[FloatArray]] = (False, math.inf, [])
         for aim, horizon in aims:
-            reached, closest, actions = lookahead(physics, task, aim, substeps, horizon)
-            if (reached, -closest) > (best[0], -best[1]):
-                best = (reached, closest, actions)
-        reached, closest, actions = best
-        return actions if reached or closest < self._closest - self.probe.min_gain else []
+            outcome = lookahead(physics, task, aim, substeps, horizon)
+            if (outcome[0], -outcome[1]) > (best[0], -best[1]):
+                best = outcome
+        reached, approach, actions = best
+        return actions if reached or approach < closest - self.probe.min_gain else []
 
 
 class PullBackEntry:
