@@ -44,6 +44,7 @@ from torchrl.envs import EnvBase, ExplorationType, set_exploration_type
 
 from sim4endor._atomic import atomic_directory, atomic_write_bytes
 from sim4endor.rl import checkpoint
+from sim4endor.rl.algorithms import observation_dim
 from sim4endor.rl.envs import sim4endor_env
 from sim4endor.rl.evaluation import rollouts
 from sim4endor.rl.runs import load_agent_for, run_config
@@ -142,13 +143,13 @@ def finetune(run: Path, new_run: Path, data_files: list[Path], *, steps: int, ba
     env = sim4endor_env(config.env, seed)
     try:
         agent = load_agent_for(run, config, env)
+        width = observation_dim(env.observation_spec)
     finally:
         env.close()
     data = [np.load(path) for path in data_files]
     obs = torch.as_tensor(np.concatenate([d["observation"] for d in data]), dtype=torch.float32)
     action = torch.as_tensor(np.concatenate([d["action"] for d in data]), dtype=torch.float32)
     takeover = torch.as_tensor(np.concatenate([d["takeover"] for d in data]))
-    width = agent.actor.module[0].module[0].net[0].in_features
     if obs.shape[-1] != width:
         raise SystemExit(f"{data_files}: observations of {obs.shape[-1]} numbers, but {run}'s "
                          f"networks read {width}: collect the data with this run's "
