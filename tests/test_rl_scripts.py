@@ -191,9 +191,11 @@ def test_the_expert_takes_over_where_the_policy_is_stuck_and_finetuning_learns_i
 
     stall = 4
     counts = script.collect(run, tmp_path / "data.npz", episodes=1, seed=0, stall_steps=stall,
-                            max_steps=stall + 12)
+                            max_steps=stall + 12, task_arguments={"task": "task_b"})
     data = np.load(tmp_path / "data.npz")
     takeover, action = data["takeover"], data["action"]
+    collected_on = json.loads(str(data["env"]))  # where it ran: the run's env, overridden
+    assert (collected_on["domain"], collected_on["task"]) == (phantom, "task_b")
     assert counts["steps"] == len(takeover) == stall + 12
     assert counts["takeover_steps"] == int(takeover.sum()) > 0
     assert not takeover[:stall].any() and takeover[stall]  # the policy's first steps, then

@@ -6,11 +6,13 @@ expert's own episodes (``demonstrations.episodes``) show states the policy never
 these are taken where the policy fails, as in HG-DAgger (Kelly et al., ICRA 2019):
 
 ``collect``
-    The run's deterministic policy drives on the run's training trees. When the tip has come
+    The run's deterministic policy drives on the run's training trees (or another domain's
+    or pool's: ``--domain``, ``--pool-seed``, ``--pool-size``). When the tip has come
     no ``MIN_GAIN`` closer to the target for ``--stall-steps`` control steps, the
     :class:`~sim4endor.tasks.expert.ProbingExpert` plans from that state (its lookahead on a
     copy of the simulation) and its plan's actions drive until the plan ends; then the policy
-    again. Every step's observation and action is saved with a flag saying who acted.
+    again. Every step's observation and action is saved with a flag saying who acted, and
+    the file names the environment it came from (``env``: the run's settings as overridden).
 ``finetune``
     Behaviour cloning of the takeover steps' actions, anchored on the policy's own
     deterministic actions at every other saved state (half of each batch), so it learns
@@ -19,6 +21,8 @@ these are taken where the policy fails, as in HG-DAgger (Kelly et al., ICRA 2019
 
 Usage:
     python experiments/generalist/takeover.py collect RUN DATA.npz --episodes 150 --seed 1000
+    python experiments/generalist/takeover.py collect RUN WIDE.npz --domain random_coronary \
+        --pool-seed 200 --pool-size 40 --seed 5000    # wide (3.5-4.4 mm) generated trees
     python experiments/generalist/takeover.py finetune RUN NEW_RUN DATA.npz [DATA.npz ...]
     sim4endor evaluate NEW_RUN --suite generalisation --trees 20 --first-seed 1100
 
@@ -30,11 +34,14 @@ over; without it the two labels conflict.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import io
 import json
 import math
 import shutil
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -47,7 +54,7 @@ from sim4endor.rl import checkpoint
 from sim4endor.rl.algorithms import observation_dim
 from sim4endor.rl.envs import sim4endor_env
 from sim4endor.rl.evaluation import rollouts
-from sim4endor.rl.runs import load_agent_for, run_config
+from sim4endor.rl.runs import evaluation_env, load_agent_for, run_config
 from sim4endor.rl.trainer import CONFIG_FILE
 from sim4endor.tasks.expert import ProbingExpert
 
@@ -101,11 +108,15 @@ class Takeover(TensorDictModuleBase):
 
 
 def collect(run: Path, out: Path, *, episodes: int, seed: int, stall_steps: int,
-            max_steps: int) -> dict[str, int]:
-    """Runs ``episodes`` takeover episodes of ``run`` on its training trees; writes ``out``
-    (observation, action, takeover, episode) and returns the counts."""
+            max_steps: int, task_arguments: Mapping[str, Any] | None = None
+            ) -> dict[str, int]:
+    """Runs ``episodes`` takeover episodes of ``run`` on its training trees, or where
+    ``task_arguments`` (``EnvConfig`` fields over the run's, e.g. ``{"domain":
+    "random_coronary"}``) say; writes ``out`` (observation, action, takeover, episode, env)
+    and returns the counts."""
     config = run_config(run)
-    env = sim4endor_env(config.env, seed)
+    env_config = evaluation_env(config.env, task_arguments or {})
+    env = sim4endor_env(env_config, seed)
     try:
         agent = load_agent_for(run, config, env)
         policy = Takeover(agent.env_actor, env, stall_steps)
@@ -126,6 +137,7 @@ def collect(run: Path, out: Path, *, episodes: int, seed: int, stall_steps: int,
         env.close()
     data = {k: np.concatenate(v) for k, v in columns.items()}
     data["episode"] = np.concatenate(episode)
+    data["env"] = np.array(json.dumps(dataclasses.asdict(env_config)))
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **data)
     atomic_write_bytes(out, buffer.getvalue())
@@ -210,6 +222,10 @@ def main() -> None:
     c.add_argument("--stall-steps", type=int, default=40,
                    help="control steps without progress before the expert takes over")
     c.add_argument("--max-steps", type=int, default=800)
+    c.add_argument("--domain", help="collect on this domain (default: the run's)")
+    c.add_argument("--task", help="task of --domain (default: the run's)")
+    c.add_argument("--pool-seed", type=int, help="generated trees: the first tree's seed")
+    c.add_argument("--pool-size", type=int, help="generated trees: how many")
     f = sub.add_parser("finetune", help="behaviour cloning of the takeovers into a new run")
     f.add_argument("run", type=Path, help="the run that collected the data")
     f.add_argument("new_run", type=Path, help="new run folder (must not exist)")
@@ -221,8 +237,11 @@ def main() -> None:
     f.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     if args.command == "collect":
+        overrides = {"domain": args.domain, "task": args.task, "pool_seed": args.pool_seed,
+                     "pool_size": args.pool_size}
         counts = collect(args.run, args.out, episodes=args.episodes, seed=args.seed,
-                         stall_steps=args.stall_steps, max_steps=args.max_steps)
+                         stall_steps=args.stall_steps, max_steps=args.max_steps,
+                         task_arguments={k: v for k, v in overrides.items() if v is not None})
         print(json.dumps({"out": str(args.out), **counts}))
     else:
         if args.new_run.exists():
