@@ -21,7 +21,7 @@ def test_the_generalist_is_shipped_small_and_loads_weights_only() -> None:
     assert state.stat().st_size < 5 * 2**20  # a few MB at most
     assert not (folder / CHECKPOINT_DIR / "replay.pt").exists()
     torch.load(state, weights_only=True)  # tensors and plain data only: no pickled code
-    assert run_config(folder).env.observations == "generalist_no_radius"
+    assert run_config(folder).env.observations == "generalist_stall"
     assert (folder / "MODEL_CARD.md").is_file()
 
 
@@ -46,7 +46,8 @@ def test_the_generalist_acts_on_a_phantom_it_never_saw() -> None:
 
 
 def test_the_generalist_exports_with_its_shaped_tip_in_the_contract(tmp_path) -> None:
-    """policy.json names the wire as plain data the catalogue rebuilds: 5 mm bent 60 deg."""
+    """policy.json names the wire as plain data the catalogue rebuilds: 2 mm bent 60 deg, a
+    secondary curve 7 mm from the end bent 40 deg."""
     import json
     import math
 
@@ -60,6 +61,8 @@ def test_the_generalist_exports_with_its_shaped_tip_in_the_contract(tmp_path) ->
     assert [path.name for path in paths] == ["policy.pt", "policy.json"]
     contract = json.loads(paths[1].read_text())
     wire = wires.resolve(contract["environment"]["task_kwargs"]["wire"])
-    assert wire.tip_length == pytest.approx(0.005)
+    assert wire.tip_length == pytest.approx(0.002)
     assert wire.tip_angle == pytest.approx(math.radians(60.0))
-    assert contract["observation"]["shape"][-1] == 35
+    assert wire.secondary_distance == pytest.approx(0.007)
+    assert wire.secondary_angle == pytest.approx(math.radians(40.0))
+    assert contract["observation"]["shape"][-1] == 36  # generalist_no_radius and stall_time
