@@ -7,7 +7,8 @@ these are taken where the policy fails, as in HG-DAgger (Kelly et al., ICRA 2019
 
 ``collect``
     The run's deterministic policy drives on the run's training trees (or another domain's
-    or pool's: ``--domain``, ``--pool-seed``, ``--pool-size``). When the tip has come
+    or pool's: ``--domain``, ``--pool-seed``, ``--pool-size``, the task arguments of
+    ``sim4endor evaluate``). When the tip has come
     no ``MIN_GAIN`` closer to the target for ``--stall-steps`` control steps, the
     :class:`~sim4endor.tasks.expert.ProbingExpert` plans from that state (its lookahead on a
     copy of the simulation) and its plan's actions drive until the plan ends; then the policy
@@ -50,6 +51,7 @@ from tensordict.nn import TensorDictModuleBase
 from torchrl.envs import EnvBase, ExplorationType, set_exploration_type
 
 from sim4endor._atomic import atomic_directory, atomic_write_bytes
+from sim4endor.cli.args import add_task_arguments, task_arguments
 from sim4endor.rl import checkpoint
 from sim4endor.rl.algorithms import observation_dim
 from sim4endor.rl.envs import sim4endor_env
@@ -224,8 +226,7 @@ def main() -> None:
     c.add_argument("--max-steps", type=int, default=800)
     c.add_argument("--domain", help="collect on this domain (default: the run's)")
     c.add_argument("--task", help="task of --domain (default: the run's)")
-    c.add_argument("--pool-seed", type=int, help="generated trees: the first tree's seed")
-    c.add_argument("--pool-size", type=int, help="generated trees: how many")
+    add_task_arguments(c)
     f = sub.add_parser("finetune", help="behaviour cloning of the takeovers into a new run")
     f.add_argument("run", type=Path, help="the run that collected the data")
     f.add_argument("new_run", type=Path, help="new run folder (must not exist)")
@@ -237,11 +238,11 @@ def main() -> None:
     f.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     if args.command == "collect":
-        overrides = {"domain": args.domain, "task": args.task, "pool_seed": args.pool_seed,
-                     "pool_size": args.pool_size}
+        overrides = task_arguments(args)
+        overrides.update({k: v for k, v in (("domain", args.domain), ("task", args.task)) if v})
         counts = collect(args.run, args.out, episodes=args.episodes, seed=args.seed,
                          stall_steps=args.stall_steps, max_steps=args.max_steps,
-                         task_arguments={k: v for k, v in overrides.items() if v is not None})
+                         task_arguments=overrides)
         print(json.dumps({"out": str(args.out), **counts}))
     else:
         if args.new_run.exists():
