@@ -14,6 +14,7 @@ from sim4endor.models import push, torque, validation, wires
 from sim4endor.models.driver import DriverConfig
 from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.models.scene import SceneConfig
+from sim4endor.physics import GuidewirePhysics
 from sim4endor.suite import NavigationEnvironment, physics_for
 from sim4endor.tasks.anatomy import FixedAnatomy, compile_anatomy
 from sim4endor.tasks.config import InitialStateConfig, NavigationConfig, TerminationConfig
@@ -36,6 +37,9 @@ def test_the_tip_follows_the_driver_and_a_stiffer_core_whips_less() -> None:
     # stiff: tip loads 1 / 3 / 12.4 gf), largest jump 7.5 / 6.9 / 6.2 deg per 50 ms against the
     # driver's 4.5. The lag at the end of the turn is not ordered by the core (10.4 / 14.4 /
     # 13.3 deg; docs/guidewire.md). With pyramidal cones the whips were 1.49 / 1.55 / 1.47.
+    # Each preset keeps its own tip (2 / 1.5 / 1 mm at 45 deg), and the order is the tips',
+    # not the cores': with 2 mm at 45 deg on all three the whips are 1.61 / 1.61 / 1.60
+    # (docs/tasks/coronary.md, Measured, 2026-12-03).
     whips = []
     for name in ("workhorse", "intermediate", "stiff"):
         result = torque.roll_test(wires.resolve({"preset": name, "coating": "hydrophobic"}))
@@ -45,6 +49,29 @@ def test_the_tip_follows_the_driver_and_a_stiffer_core_whips_less() -> None:
         whips.append(result.whip)
     assert whips[0] > whips[1] > whips[2]
     assert whips[0] < 1.8
+
+
+def test_a_tip_wider_than_the_bench_lumens_starts_straightened_in_them() -> None:
+    # The workhorse shaped 3,75,5,50 (4.27 mm wide) in the 4 mm S tube and the 4 mm phantom
+    # inlet. Laid out in its rest shape it started 2.3 mm outside the phantom's lumen, and the
+    # dead-end push then read 1.09 wire radii of penetration; started as an episode starts
+    # (straightened in the bore) it reads 0.00 at every roll.
+    hooked = wires.preset("workhorse", tip="3,75,5,50")
+    assert hooked.tip_lateral_offset > 2 * torque.TUBE_RADIUS
+    physics = torque.bent_tube_physics(hooked)
+    assert _escape_depth_in_tube(physics) < hooked.radius
+    result = push.push_test(vessels.load("simplified_phantom"), hooked, 0.5, duration=1.0)
+    assert result.finite and not result.left_lumen
+    assert result.penetration_over_radius <= 0.25
+
+
+def _escape_depth_in_tube(physics: GuidewirePhysics) -> float:
+    """How far (m) the wire's axis lies outside the S tube's lumen at its worst point."""
+    path = torque.s_path(0.0002)
+    points = physics.wire_points()
+    points = points[points[:, 0] > 0.0]  # in the tube, not the sheath behind its inlet
+    gaps = np.linalg.norm(points[:, None, :] - path[None, :, :], axis=2).min(axis=1)
+    return float(max(0.0, gaps.max() - torque.TUBE_RADIUS))
 
 
 def test_tip_roll_lags_more_at_a_faster_turn() -> None:

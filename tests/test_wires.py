@@ -18,6 +18,7 @@ from sim4endor.models.guidewire import (
     GuidewireConfigError,
     add_guidewire,
     segment_lengths,
+    wire_vertices,
 )
 from sim4endor.models.scene import SceneConfig, base_spec, build_model, config_for_vessel
 from sim4endor.tasks import TaskConfigError, random_coronary
@@ -69,6 +70,18 @@ def test_simulated_tip_load_is_within_20_percent_of_the_rating(name: str) -> Non
     assert abs(result.force_gf - entry.rated_tip_load_gf) <= 0.2 * entry.rated_tip_load_gf
     # Tighter: the chain reproduces the continuous rod's buckling load (elastica + 1 %).
     assert result.force / result.predicted == pytest.approx(1.0, abs=0.06)
+
+
+def test_the_bench_tests_hold_a_shaped_wire_straight_secondary_curve_and_all() -> None:
+    # A secondary curve 5 mm back, left in, would bend the tip-load test's 10 mm column and
+    # the cantilevers, which a manufacturer tests straight.
+    shaped = wires.preset("workhorse", tip="3,75,5,50")
+    assert shaped.secondary_angle > 0
+    np.testing.assert_allclose(wire_vertices(shaped.straightened())[:, 1:], 0.0, atol=1e-12)
+    tested, _ = tip_load.tested_wire(shaped)
+    assert tested.secondary_angle == 0.0
+    assert tested.tip_angle == pytest.approx(math.radians(1.0))  # the imperfection alone
+    assert tested.tip_length == shaped.tip_length
 
 
 def test_stiffer_core_gives_a_higher_simulated_tip_load() -> None:

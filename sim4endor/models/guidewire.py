@@ -45,6 +45,7 @@ How the rod is built (and why):
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import types
@@ -250,6 +251,11 @@ class GuidewireConfig:
         ``tip_length``: the continuous rod that the joints discretise.
         """
         return self.bending_stiffness * stiffness_profile(self, from_tip)
+
+    def straightened(self, tip_angle: float = 0.0) -> GuidewireConfig:
+        """The same wire with its tip and any secondary curve unbent, as a bench test holds
+        it; ``tip_angle`` (rad) leaves that much bend over the tip as an imperfection."""
+        return dataclasses.replace(self, tip_angle=tip_angle, secondary_angle=0.0)
 
     @property
     def tip_lateral_offset(self) -> float:

@@ -348,6 +348,14 @@ def _add_wall_contact_sensor(spec: mujoco.MjSpec, name: str, wire_body: str) -> 
     sensor.intprm = [0b11, 0, names.CONTACT_SENSOR_SLOTS]
 
 
+def starts_straight(wire: GuidewireConfig, bore_radius: float) -> bool:
+    """Whether ``wire``'s shaped tip (secondary curve included) is too wide for a bore of
+    ``bore_radius`` (m): such a tip starts straightened in it, as a real wire's tip does in a
+    guide catheter, and springs into its shape as it leaves (GuidewirePhysics.place_driver);
+    one that fits starts shaped."""
+    return wire.tip_lateral_offset >= bore_radius - wire.radius
+
+
 def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujoco.MjSpec:
     """Returns the uncompiled scene spec.
 
@@ -374,10 +382,7 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
         straight = False
     else:
         inlet, direction = vessel.inlet_position, vessel.inlet_direction
-        # A shaped tip wider than the inlet's bore (a guide catheter's, typically) starts
-        # straightened in it, as a real wire's tip does in the catheter, and springs into its
-        # shape as it leaves (GuidewirePhysics.place_driver); one that fits starts shaped.
-        straight = wire.tip_lateral_offset >= vessel.manifest.inlet.radius - wire.radius
+        straight = starts_straight(wire, vessel.manifest.inlet.radius)
         _attach_vessel(spec, vessel)
     direction = direction / np.linalg.norm(direction)
     quat = insertion_frame(direction)

@@ -152,7 +152,7 @@ def tested_wire(
     kept[-1] -= float(np.sum(kept)) - free_length
     lengths = np.concatenate([[clamp_length], kept[::-1]])
     tested = dataclasses.replace(
-        wire, length=float(np.sum(lengths)), tip_angle=math.radians(1.0)
+        wire.straightened(math.radians(1.0)), length=float(np.sum(lengths))
     )
     return tested, lengths
 

@@ -30,9 +30,10 @@ import numpy as np
 from dm_control.mujoco import wrapper
 from numpy.typing import NDArray
 
+from sim4endor.models import constants as names
 from sim4endor.models.driver import DriverConfig
 from sim4endor.models.guidewire import GuidewireConfig
-from sim4endor.models.scene import SceneConfig, build_spec
+from sim4endor.models.scene import SceneConfig, build_spec, starts_straight
 from sim4endor.physics import GuidewirePhysics
 
 FloatArray = NDArray[np.float64]
@@ -103,14 +104,21 @@ def add_tube(
 def bent_tube_physics(wire: GuidewireConfig, timestep: float | None = None) -> GuidewirePhysics:
     """The wire on its driver at the inlet (origin, +x) of the S-shaped test lumen.
 
-    The wire is shortened to what the insertion needs (fewer segments, faster steps).
+    The wire is shortened to what the insertion needs (fewer segments, faster steps). It
+    starts as in an episode (:meth:`GuidewirePhysics.place_driver`): a tip wider than the
+    tube straightened in it.
     """
     driver = DriverConfig(max_insertion=INSERTION + 0.002)
     wire = dataclasses.replace(wire, length=driver.max_insertion + driver.initial_protrusion
                                + 0.003)
     spec = build_spec(None, SceneConfig(wire=wire, driver=driver, timestep=timestep))
     add_tube(spec, s_path())
-    return GuidewirePhysics.from_model(wrapper.MjModel(spec.compile()))
+    straight = starts_straight(wire, TUBE_RADIUS)
+    spec.numeric(names.TIP_STRAIGHT_AT_START).data = [float(straight)]
+    physics = GuidewirePhysics.from_model(wrapper.MjModel(spec.compile()))
+    if straight:  # a tip that fits starts from the compiled rest state, as it always did
+        physics.place_driver(0.0, 0.0)
+    return physics
 
 
 def held_tips(wire: GuidewireConfig, holds: Sequence[float],

@@ -69,7 +69,7 @@ def cantilever(
     ``deflection_fraction`` of the free length (small-deflection theory holds).
     """
     factor = wire.tip_stiffness_factor if soft_tip else 1.0
-    straight = dataclasses.replace(wire, tip_angle=0.0, tip_stiffness_factor=factor)
+    straight = dataclasses.replace(wire.straightened(), tip_stiffness_factor=factor)
     free_length = straight.length - float(segment_lengths(straight)[0])
     ei = straight.bending_stiffness
     force = 3 * ei * deflection_fraction / free_length**2
@@ -104,7 +104,7 @@ def tapered_cantilever(
     As :func:`cantilever`: contacts off, the free length runs from the end of the first
     (clamped) segment, and the load gives a deflection of ``deflection_fraction`` of it.
     """
-    straight = dataclasses.replace(wire, tip_angle=0.0)
+    straight = wire.straightened()
     free_length = straight.length - float(segment_lengths(straight)[0])
     unit = euler_bernoulli_deflection(straight, free_length, 1.0)
     force = deflection_fraction * free_length / unit

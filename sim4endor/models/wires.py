@@ -209,7 +209,7 @@ def _entry(name: str, raw: Mapping[str, Any], materials: Mapping[str, Any]) -> W
         return WireEntry(name, raw["description"], GuidewireConfig())
     material = materials[raw["core_material"]]
     profile = tuple((s * _MM, d * _MM) for s, d in raw["core_profile_mm"])
-    shape = TipShape.degrees(raw["tip_shape"]["length_mm"], raw["tip_shape"]["angle_deg"])
+    shape = TipShape.degrees(**raw["tip_shape"])
     config = GuidewireConfig(
         outer_diameter=0.014 * INCH,
         core_diameter=profile[-1][1],  # the shaft core: the reference of every joint factor
@@ -217,8 +217,6 @@ def _entry(name: str, raw: Mapping[str, Any], materials: Mapping[str, Any]) -> W
         youngs_modulus=material["youngs_modulus_gpa"] * 1e9,
         shear_modulus=material["shear_modulus_gpa"] * 1e9,
         density=material["density_kg_m3"],
-        tip_length=shape.length,
-        tip_angle=shape.angle,
         tip_stiffness_factor=1.0,  # the taper makes the tip soft
         friction=coating_friction(raw["coating"]),
         chain_bodies=CHAIN_BODIES,
@@ -226,7 +224,7 @@ def _entry(name: str, raw: Mapping[str, Any], materials: Mapping[str, Any]) -> W
         friction_cone=CATALOGUE_FRICTION_CONE,
     )
     return WireEntry(
-        name=name, description=raw["description"], config=config,
+        name=name, description=raw["description"], config=shaped(config, shape),
         rated_tip_load_gf=float(raw["rated_tip_load_gf"]), rating_source=raw["rating_source"],
         modelled_on=raw["modelled_on"], core_material=raw["core_material"],
         coating=raw["coating"],
