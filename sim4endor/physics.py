@@ -95,6 +95,18 @@ class GuidewirePhysics(dm_mujoco.Physics):
         """
         return cls.from_model(wrapper.MjModel(build_model(vessel, config)))
 
+    @classmethod
+    def from_model(cls, model: wrapper.MjModel) -> GuidewirePhysics:
+        """Wraps ``model`` with fresh data in the scene's start state: the driver at its
+        start, and a tip flagged too wide for the inlet's bore
+        (:data:`~sim4endor.models.constants.TIP_STRAIGHT_AT_START`) straightened in it, as
+        :meth:`place_driver` starts every episode. A tip that fits keeps the compiled start
+        state as it is."""
+        physics = super().from_model(model)
+        if _scalar(physics.named.model.numeric_data[names.TIP_STRAIGHT_AT_START]):
+            physics.place_driver(0.0, 0.0)
+        return physics
+
     # ------------------------------------------------------------------------ wire state
     def _indices(self) -> _Indices:
         # Name lookups cost microseconds each; do them once per model (reloads change it).
@@ -152,6 +164,11 @@ class GuidewirePhysics(dm_mujoco.Physics):
     def num_wire_segments(self) -> int:
         """Number of rigid segments of the wire."""
         return len(self._indices().wire_bodies)
+
+    def wire_body_ids(self) -> NDArray[np.int64]:
+        """MuJoCo body ids of the wire's segments, proximal first (segment ``i`` runs from
+        :meth:`wire_points` vertex ``i`` to ``i + 1``; each body's x axis runs along it)."""
+        return self._indices().wire_bodies.copy()
 
     def tip_position(self) -> FloatArray:
         """World position of the wire's distal end (m), shape (3,)."""

@@ -406,6 +406,27 @@ def test_reachability_starts_summary() -> None:
     assert low == pytest.approx(0.188, abs=1e-3) and high == pytest.approx(0.812, abs=1e-3)
 
 
+def test_reachability_runs_the_phantoms_with_their_own_wire_or_the_one_given(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The phantoms' rows run each task's own wire unless a wire is given; a given one, a
+    user-shaped workhorse here, reaches the simplified phantom's target A."""
+    script = _reachability_script()
+    loaded, real_load = [], suite.load
+
+    def load(domain: str, task: str, task_kwargs: dict) -> control.Environment:
+        loaded.append(task_kwargs)
+        return real_load(domain, task, task_kwargs)
+
+    monkeypatch.setattr(script.suite, "load", load)
+    shaped = {"preset": "workhorse", "tip": "3,75,5,50"}
+    row = script.reachability("simplified_phantom", "task_a", 1, CenterlineExpert(), shaped)
+    own = script.reachability("simplified_phantom", "task_a", 1, CenterlineExpert())
+    assert loaded == [{"random": 0, "wire": shaped}, {"random": 0}]
+    assert row["wire"] == shaped and row["successes"] == 1
+    assert own["wire"] is None and own["successes"] == 1
+
+
 def test_reachability_runs_vessel_folders_as_a_user_loads_them() -> None:
     """``--domain vessel``: a case per target of the folder, loaded through the ``vessel``
     domain with the wire given; the expert reaches the simplified phantom's target A."""

@@ -31,15 +31,13 @@ def test_test_lumen_is_an_s_of_two_right_angles() -> None:
     assert np.all(np.linalg.norm(np.diff(path, axis=0), axis=1) <= 0.003 + 1e-9)
 
 
-def test_the_tip_follows_the_driver_and_a_stiffer_core_whips_less() -> None:
+def test_the_tip_follows_the_driver_and_the_shipped_tips_whip_in_their_lengths_order() -> None:
     # Measured with the catalogue's 2.5 ms step and elliptic cones, every preset with the
     # hydrophobic coat (90 deg/s): whip 1.66 / 1.52 / 1.39 (workhorse / intermediate /
-    # stiff: tip loads 1 / 3 / 12.4 gf), largest jump 7.5 / 6.9 / 6.2 deg per 50 ms against the
-    # driver's 4.5. The lag at the end of the turn is not ordered by the core (10.4 / 14.4 /
-    # 13.3 deg; docs/guidewire.md). With pyramidal cones the whips were 1.49 / 1.55 / 1.47.
-    # Each preset keeps its own tip (2 / 1.5 / 1 mm at 45 deg), and the order is the tips',
-    # not the cores': with 2 mm at 45 deg on all three the whips are 1.61 / 1.61 / 1.60
-    # (docs/tasks/coronary.md, Measured, 2026-12-03).
+    # stiff), largest jump 7.5 / 6.9 / 6.2 deg per 50 ms against the driver's 4.5. Each
+    # preset keeps its own tip (2 / 1.5 / 1 mm at 45 deg), and the order is the tips', not the
+    # cores': with 2 mm at 45 deg on all three the whips are 1.61 / 1.61 / 1.60 and the lags
+    # 9.9 / 9.3 / 12.4 deg (docs/guidewire.md). The core's part is the next test's.
     whips = []
     for name in ("workhorse", "intermediate", "stiff"):
         result = torque.roll_test(wires.resolve({"preset": name, "coating": "hydrophobic"}))
@@ -49,6 +47,26 @@ def test_the_tip_follows_the_driver_and_a_stiffer_core_whips_less() -> None:
         whips.append(result.whip)
     assert whips[0] > whips[1] > whips[2]
     assert whips[0] < 1.8
+
+
+def test_a_stiffer_core_transmits_the_roll_of_a_gripped_tip_with_less_wind_up() -> None:
+    # One tip (2 mm at 45 deg) and one coat on all three, so only the core differs; the
+    # wire is gripped behind its tip with 10 uN.m (docs/guidewire.md, "Torque through two
+    # bends"). Measured: the grip adds 35.7 / 8.3 / 4.1 deg of lag (workhorse / intermediate
+    # / stiff) against 29.2 / 7.9 / 2.4 deg of twist from the integrated 1/GJ(s); the rest
+    # is of the size of the free lags' spread, 9.9 / 9.3 / 12.4 deg in no order by core.
+    windups, predicted = [], []
+    for name in ("workhorse", "intermediate", "stiff"):
+        wire = wires.resolve({"preset": name, "coating": "hydrophobic", "tip": "2,45"})
+        free = torque.roll_test(wire, hold=0.5)
+        gripped = torque.roll_test(wire, hold=0.5, grip=torque.GRIP)
+        assert gripped.healthy and gripped.tip_in_last_straight
+        windups.append(gripped.lag_deg - free.lag_deg)
+        predicted.append(gripped.predicted_windup_deg)
+    assert windups[0] > windups[1] > windups[2] > 0.0
+    assert predicted[0] > predicted[1] > predicted[2]
+    for measured, twist in zip(windups, predicted, strict=True):
+        assert 0.8 * twist < measured < 2.0 * twist
 
 
 def test_a_tip_wider_than_the_bench_lumens_starts_straightened_in_them() -> None:

@@ -11,6 +11,9 @@ generated trees (seeds ``--first-seed`` on, alternately left and right; the defa
 used by no test or tuning) once each with the ``--wire`` preset (default ``workhorse``), and
 prints each (tree, target) and the overall success rate.
 
+On the phantoms (the default domain) ``--wire`` and ``--tip`` set the wire as below; without
+them each task keeps its own wire, the ``paper`` preset, as Table I was measured.
+
 ``--expert probing`` runs :class:`~sim4endor.tasks.expert.ProbingExpert` instead: where the
 plain expert is stuck it simulates several aims on a copy of the simulation and follows the
 best. It is the stronger reachability check (can the wire get there at all); the plain expert
@@ -36,6 +39,7 @@ interval, and how many targets were reached from every start and from at least o
 
 Usage:
     python experiments/benchmarks/expert_reachability.py [--episodes 8] [--json]
+    python experiments/benchmarks/expert_reachability.py --wire workhorse --tip 3 75 5 50
     python experiments/benchmarks/expert_reachability.py --domain coronary --trees 20 \
         --tip 2 60 7 40
     python experiments/benchmarks/expert_reachability.py --domain coronary --expert probing \
@@ -83,13 +87,15 @@ EXPERTS = {"centerline": CenterlineExpert, "probing": ProbingExpert}
 START_STRIDE = 1_000_000
 
 
-def reachability(domain: str, task: str, episodes: int,
-                 expert: CenterlineExpert) -> dict[str, object]:
-    """Runs ``episodes`` seeded expert episodes (seeds 0..episodes-1) and counts outcomes."""
+def reachability(domain: str, task: str, episodes: int, expert: CenterlineExpert,
+                 wire: str | dict[str, object] | None = None) -> dict[str, object]:
+    """Runs ``episodes`` seeded expert episodes (seeds 0..episodes-1) and counts outcomes;
+    ``wire`` is the task's wire setting (``None``: the phantom's own wire, ``paper``)."""
     outcomes: collections.Counter[str] = collections.Counter()
     times = []
+    extra = {} if wire is None else {"wire": wire}
     for seed in range(episodes):
-        env = suite.load(domain, task, {"random": seed})
+        env = suite.load(domain, task, {"random": seed, **extra})
         info = run_expert(env, expert)
         if info["is_success"]:
             outcomes["success"] += 1
@@ -98,7 +104,7 @@ def reachability(domain: str, task: str, episodes: int,
             outcomes[str(info["failure"] or "timeout")] += 1
         env.close()
     return {
-        "domain": domain, "task": task, "episodes": episodes,
+        "domain": domain, "task": task, "wire": wire, "episodes": episodes,
         "successes": outcomes.pop("success", 0), "other_outcomes": dict(outcomes),
         "mean_time_s": sum(times) / len(times) if times else None,
     }
@@ -209,9 +215,10 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=1000, help="first coronary tree seed")
     parser.add_argument("--vessels", type=Path, nargs="+", metavar="DIR",
                         help="vessel folders (--domain vessel)")
-    parser.add_argument("--wire", default="workhorse", help="wire preset (coronary, vessel)")
+    parser.add_argument("--wire", help="wire preset (default: workhorse on coronary trees and "
+                                       "vessel folders, the phantoms' own paper wire)")
     parser.add_argument("--tip", type=float, nargs="+", metavar="MM_OR_DEG",
-                        help="shape the wire's tip (coronary, vessel; default: the preset's): "
+                        help="shape the wire's tip (default: the preset's): "
                              "LENGTH_MM ANGLE_DEG, and a secondary curve's DISTANCE_MM "
                              "ANGLE_DEG if it has one")
     parser.add_argument("--expert", choices=tuple(EXPERTS), default="centerline")
@@ -225,15 +232,16 @@ def main() -> None:
             parser.error(f"--{name} must be at least 1, got {getattr(args, name)}")
     if (args.domain == "vessel") != bool(args.vessels):
         parser.error("--vessels DIR ... goes with --domain vessel, and --domain vessel needs it")
-    if args.domain in ("coronary", "vessel"):
-        wire: str | dict[str, object] = args.wire
-        if args.tip:
-            try:  # the command line's own rules and messages (sim4endor ... --tip 5,90)
-                tip = wires.parse_tip(",".join(map(str, args.tip)))
-            except wires.WireCatalogueError as error:
-                parser.error(f"--tip: {error}")
-            if isinstance(tip, wires.TipShape):  # numbers: never "J"
-                wire = {"preset": args.wire, "tip": tip.as_mapping()}
+    phantoms = args.domain == "phantoms"
+    wire: str | dict[str, object] = args.wire or ("paper" if phantoms else "workhorse")
+    if args.tip:
+        try:  # the command line's own rules and messages (sim4endor ... --tip 5,90)
+            tip = wires.parse_tip(",".join(map(str, args.tip)))
+        except wires.WireCatalogueError as error:
+            parser.error(f"--tip: {error}")
+        if isinstance(tip, wires.TipShape):  # numbers: never "J"
+            wire = {"preset": wire, "tip": tip.as_mapping()}
+    if not phantoms:
         # Spawned, not forked: CoACD's OpenMP (a tree's first build) does not survive a fork.
         with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
             if args.domain == "coronary":
@@ -255,7 +263,9 @@ def main() -> None:
                                args.starts, args.json, summary, name)
         return
     for domain, task in TASKS:
-        row = reachability(domain, task, args.episodes, EXPERTS[args.expert]())
+        # The phantoms' own wire is left to their task unless the command line sets one.
+        row = reachability(domain, task, args.episodes, EXPERTS[args.expert](),
+                           wire if args.wire or args.tip else None)
         if args.json:
             print(strict_json.dumps(row), flush=True)
             continue

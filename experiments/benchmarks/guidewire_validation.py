@@ -6,8 +6,8 @@
 Prints a human-readable report, or with ``--json`` one JSON line with exactly the keys
 cantilever_rel_error, torque_error_deg, steer_success_a, steer_success_b,
 max_escape_over_radius, realtime_factor, tip_load_rel_error, tip_load_gf,
-tapered_cantilever_rel_error, torque_lag_deg, whip, torque_roll_not_through,
-max_penetration_over_radius,
+tapered_cantilever_rel_error, tapered_torsion_rel_error, torque_lag_deg, whip,
+torque_roll_not_through, torque_lag_gripped_deg, max_penetration_over_radius,
 push_robustness, inertia_independence; the cost-vs-segment-count table is printed (to stderr
 with ``--json``). Run it on one core for the speed figures, e.g.
 ``OMP_NUM_THREADS=1 taskset -c 0 python ...``; the load average is printed with them.
@@ -36,6 +36,8 @@ Definitions:
   straightened, clamped and loaded sideways at its tip; static deflection vs the integrated
   Euler–Bernoulli solution F ∫ (L − x)² / EI(x) dx; the largest error over the presets,
   with real mass and with the default mass scaling (extra damping, 60 s to settle).
+* tapered_torsion_rel_error: the same 30 mm wires, clamped, twisted by an axial torque on
+  their distal segment (about 0.05 rad); static twist vs T ∫ ds / GJ(s); the largest error.
 * torque_lag_deg, whip (per preset; sim4endor.models.torque): the wire inserted through a
   2 mm-radius S of two 90° bends (bend radius 8 mm) until its tip is 20 mm into the last
   straight; the driver then turns 360° at 90°/s and holds 2 s. Lag: commanded roll minus the
@@ -43,6 +45,11 @@ Definitions:
   in one 50 ms control step over the commanded roll per step (1 = the tip keeps pace). No
   target. The residual lag after the hold and the largest jump are printed. A preset whose
   tip did not reach the last straight is listed in torque_roll_not_through instead.
+* torque_lag_gripped_deg (per tapered preset): the same roll with one tip shape (2 mm, 45°)
+  and the hydrophobic coat on every preset, so only the core differs, once free and once
+  gripped behind the tip by torque.GRIP (10 µN·m); per preset the grip, the lag of both, the wind-up
+  the grip adds (gripped − free) and the twist T ∫ ds / GJ(s) predicts for it. A stiffer core
+  transmits the grip's load with less wind-up; the free lags are in no order by core.
 * max_penetration_over_radius (per preset; sim4endor.models.push): the wire driven at full
   speed into branch A's closed end (40 mm of travel past the target) and pushed at the
   driver's 0.5 N limit for 6 s; the deepest overlap of a wire capsule with a wall hull
@@ -117,13 +124,16 @@ def tip_loads() -> dict[str, dict[str, float | None]]:
     return out
 
 
+def tapered_presets() -> list[str]:
+    """The catalogue's presets with a tapered core (all but ``paper``)."""
+    return [name for name in wires.names() if wires.preset(name).core_profile is not None]
+
+
 def tapered_cantilever_errors(length: float = 0.03) -> dict[str, dict[str, float]]:
     """Tapered presets as cantilevers: real mass and default mass scaling (heavily damped)."""
     out = {}
-    for name in wires.names():
+    for name in tapered_presets():
         wire = dataclasses.replace(wires.preset(name), length=length)
-        if wire.core_profile is None:
-            continue
         real = validation.tapered_cantilever(dataclasses.replace(wire, mass_scale=1.0))
         # Damped 8x (not 80x as before): a catalogue wire is split into chains, whose welds
         # go unstable under joint damping of a second or more; both settle within 60 s.
@@ -136,9 +146,33 @@ def tapered_cantilever_errors(length: float = 0.03) -> dict[str, dict[str, float
     return out
 
 
+def tapered_torsion_errors(length: float = 0.03) -> dict[str, dict[str, float]]:
+    """Tapered presets twisted at their tip: measured and predicted twist (rad)."""
+    out = {}
+    for name in tapered_presets():
+        result = validation.tapered_torsion(dataclasses.replace(wires.preset(name), length=length))
+        out[name] = {"rel_error": result.relative_error, "twist_rad": result.twist,
+                     "predicted_rad": result.predicted, "torque_n_m": result.torque}
+    return out
+
+
 def torque_rolls() -> dict[str, torque.RollResult]:
     """The S-lumen roll test of every catalogue preset."""
     return {name: torque.roll_test(wires.preset(name)) for name in wires.names()}
+
+
+def gripped_rolls() -> dict[str, dict[str, float]]:
+    """The roll test of every tapered preset with one tip and coat, free and gripped."""
+    out = {}
+    for name in tapered_presets():
+        wire = wires.resolve({"preset": name, "coating": "hydrophobic", "tip": "2,45"})
+        free = torque.roll_test(wire)
+        gripped = torque.roll_test(wire, grip=torque.GRIP)
+        out[name] = {"grip_n_m": torque.GRIP, "free": free.lag_deg, "gripped": gripped.lag_deg,
+                     "windup": gripped.lag_deg - free.lag_deg,
+                     "predicted_windup": gripped.predicted_windup_deg,
+                     "gripped_whip": gripped.whip}
+    return out
 
 
 def _push_row(result: push.PushResult) -> dict:
@@ -187,10 +221,8 @@ def inertia_independence() -> dict[str, dict[str, float | list[float]]]:
         return torque.held_tips(wire, (1.0,), timestep)[0]
 
     out: dict[str, dict[str, float | list[float]]] = {}
-    for name in wires.names():
+    for name in tapered_presets():
         wire = wires.preset(name)
-        if wire.core_profile is None:
-            continue
         factors = validation.inertia_factors(wire)
         default, held = torque.held_tips(wire, (1.0, 3.0))
         armature = tip(dataclasses.replace(wire, armature_time=2 * wire.armature_time), None)
@@ -336,7 +368,9 @@ def main() -> None:
     unhealthy, episodes = robustness()
     loads = tip_loads()
     tapered = tapered_cantilever_errors()
+    torsion = tapered_torsion_errors()
     rolls = torque_rolls()
+    gripped = gripped_rolls()
     pushes = push_robustness(vessel)
     by_roll = penetration_by_roll(vessel, pushes)
     inertia = inertia_independence()
@@ -357,6 +391,7 @@ def main() -> None:
         "tapered_cantilever_rel_error": max(
             max(row["real_mass"], row["mass_scaled"]) for row in tapered.values()
         ),
+        "tapered_torsion_rel_error": max(row["rel_error"] for row in torsion.values()),
         "torque_lag_deg": {
             name: roll.lag_deg for name, roll in rolls.items() if roll.tip_in_last_straight
         },
@@ -364,6 +399,7 @@ def main() -> None:
         "torque_roll_not_through": [
             name for name, roll in rolls.items() if not roll.tip_in_last_straight
         ],
+        "torque_lag_gripped_deg": gripped,
         "max_penetration_over_radius": {name: max(row.values()) for name, row in by_roll.items()},
         "penetration_by_roll": by_roll,
         "push_robustness": pushes,
@@ -399,10 +435,17 @@ def main() -> None:
               f"theory {row['beam_theory']:.3f} gf, relative error {error}", file=log)
     for name, row in tapered.items():
         print(f"tapered cantilever {name}: {row}", file=log)
+    for name, row in torsion.items():
+        print(f"tapered torsion {name}: {row}", file=log)
     for name, roll in rolls.items():
         print(f"roll {name}: lag {roll.lag_deg:.1f} deg, after 2 s {roll.residual_deg:.1f} deg, "
               f"whip {roll.whip:.2f}, largest jump {roll.max_jump_deg:.1f} deg per 50 ms, tip in "
               f"the last straight {roll.tip_in_last_straight}", file=log)
+    for name, row in gripped.items():
+        print(f"roll with the 2 mm/45 deg tip and hydrophobic coat {name}: free lag "
+              f"{row['free']:.1f} deg, gripped by {row['grip_n_m']:g} N.m {row['gripped']:.1f} deg "
+              f"(wind-up {row['windup']:.1f} deg, 1/GJ predicts {row['predicted_windup']:.1f}), "
+              f"gripped whip {row['gripped_whip']:.2f}", file=log)
     for force, rows in pushes.items():
         for name, row in rows.items():
             for mode in ("raw", "task"):

@@ -252,6 +252,14 @@ class GuidewireConfig:
         """
         return self.bending_stiffness * stiffness_profile(self, from_tip)
 
+    def torsional_rigidity(self, from_tip: ArrayLike) -> NDArray[np.float64]:
+        """G·J (N·m²) at distances ``from_tip`` (m) from the distal end.
+
+        The plugin twists every joint with the G·J of the same core capsule it bends with,
+        and a round core's J is twice its I, so G·J = E·I · 2G/E along the whole profile.
+        """
+        return self.flexural_rigidity(from_tip) * 2.0 * self.shear_modulus / self.youngs_modulus
+
     def straightened(self, tip_angle: float = 0.0) -> GuidewireConfig:
         """The same wire with its tip and any secondary curve unbent, as a bench test holds
         it; ``tip_angle`` (rad) leaves that much bend over the tip as an imperfection."""

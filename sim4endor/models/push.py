@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from dm_control.rl import control
 
 from sim4endor.models.guidewire import GuidewireConfig
-from sim4endor.models.scene import SceneConfig, config_for_vessel, starts_straight
+from sim4endor.models.scene import SceneConfig, config_for_vessel
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.vessels import Vessel
 
@@ -57,13 +57,10 @@ def push_physics(
     force limit set to ``force_limit`` (N) and ``travel`` (m) of insertion beyond the deepest
     target, so that a soft wire buckling in the dead end cannot take up all the driver's
     travel before the servo pushes at its limit. The wire starts as in an episode
-    (:meth:`GuidewirePhysics.place_driver`): a tip wider than the inlet straightened in it."""
+    (:meth:`GuidewirePhysics.from_model`): a tip wider than the inlet straightened in it."""
     config = config_for_vessel(vessel, SceneConfig(wire=wire, timestep=timestep), margin=travel)
     driver = dataclasses.replace(config.driver, insertion_force_limit=force_limit)
-    physics = GuidewirePhysics.from_vessel(vessel, dataclasses.replace(config, driver=driver))
-    if starts_straight(config.wire, vessel.manifest.inlet.radius):
-        physics.place_driver(0.0, 0.0)  # a tip that fits starts from the compiled rest state
-    return physics
+    return GuidewirePhysics.from_vessel(vessel, dataclasses.replace(config, driver=driver))
 
 
 def push_test(

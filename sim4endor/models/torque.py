@@ -15,6 +15,14 @@ Definitions (the benchmark's ``torque_lag_deg`` and ``whip``):
 * whip: the largest tip roll speed over any ``window`` (50 ms, one control step) during the
   turn and the hold, divided by the commanded roll speed; ``max_jump_deg`` is the largest tip
   roll within one window.
+
+With a ``grip`` the wire's roll is resisted just behind its shaped tip by a friction torque, as
+where a lesion or a tight ostium holds it. That torque no longer comes from the wire's own
+bending stiffness, as the bends' friction does, so the wind-up it adds (the lag with the grip
+minus the lag without) is ``grip · ∫ ds / GJ(s)`` from the gripped segment to the clamp
+(``predicted_windup_deg``): a stiffer core transmits it with less lag. Without a grip the
+bends' friction torque scales with the core's E·I and the wind-up with E·I / G·J = 1 + ν, so
+the lag does not depend on the core (docs/guidewire.md).
 """
 
 from __future__ import annotations
@@ -32,7 +40,7 @@ from numpy.typing import NDArray
 
 from sim4endor.models import constants as names
 from sim4endor.models.driver import DriverConfig
-from sim4endor.models.guidewire import GuidewireConfig
+from sim4endor.models.guidewire import GuidewireConfig, segment_lengths
 from sim4endor.models.scene import SceneConfig, build_spec, starts_straight
 from sim4endor.physics import GuidewirePhysics
 
@@ -44,6 +52,12 @@ BEND_RADIUS = 0.008
 STRAIGHTS = (0.006, 0.006, 0.024)
 #: Insertion that puts the tip 20 mm into the last straight (m).
 INSERTION = STRAIGHTS[0] + STRAIGHTS[1] + math.pi * BEND_RADIUS + 0.020 - 0.008
+DRIVER = DriverConfig(max_insertion=INSERTION + 0.002)
+#: Grip of the gripped roll (N·m): the friction torque of a 0.56 N squeeze, just under the
+#: tasks' 0.6 N tip-force failure, on a 0.014" jacket (radius 0.178 mm) at the hydrophobic
+#: coat's friction of 0.1. No published torque with which a lesion holds a wire was found;
+#: this is a load of that order, the same for every wire.
+GRIP = 1e-5
 
 
 def s_path(step: float = 0.002) -> FloatArray:
@@ -101,24 +115,25 @@ def add_tube(
             )
 
 
-def bent_tube_physics(wire: GuidewireConfig, timestep: float | None = None) -> GuidewirePhysics:
-    """The wire on its driver at the inlet (origin, +x) of the S-shaped test lumen.
+def bench_wire(wire: GuidewireConfig) -> GuidewireConfig:
+    """``wire`` shortened to what the insertion needs (fewer segments, faster steps)."""
+    return dataclasses.replace(
+        wire, length=DRIVER.max_insertion + DRIVER.initial_protrusion + 0.003
+    )
 
-    The wire is shortened to what the insertion needs (fewer segments, faster steps). It
-    starts as in an episode (:meth:`GuidewirePhysics.place_driver`): a tip wider than the
+
+def bent_tube_physics(wire: GuidewireConfig, timestep: float | None = None) -> GuidewirePhysics:
+    """The :func:`bench_wire` of ``wire`` on its driver at the inlet (origin, +x) of the
+    S-shaped test lumen.
+
+    It starts as in an episode (:meth:`GuidewirePhysics.from_model`): a tip wider than the
     tube straightened in it.
     """
-    driver = DriverConfig(max_insertion=INSERTION + 0.002)
-    wire = dataclasses.replace(wire, length=driver.max_insertion + driver.initial_protrusion
-                               + 0.003)
-    spec = build_spec(None, SceneConfig(wire=wire, driver=driver, timestep=timestep))
+    wire = bench_wire(wire)
+    spec = build_spec(None, SceneConfig(wire=wire, driver=DRIVER, timestep=timestep))
     add_tube(spec, s_path())
-    straight = starts_straight(wire, TUBE_RADIUS)
-    spec.numeric(names.TIP_STRAIGHT_AT_START).data = [float(straight)]
-    physics = GuidewirePhysics.from_model(wrapper.MjModel(spec.compile()))
-    if straight:  # a tip that fits starts from the compiled rest state, as it always did
-        physics.place_driver(0.0, 0.0)
-    return physics
+    spec.numeric(names.TIP_STRAIGHT_AT_START).data = [float(starts_straight(wire, TUBE_RADIUS))]
+    return GuidewirePhysics.from_model(wrapper.MjModel(spec.compile()))
 
 
 def held_tips(wire: GuidewireConfig, holds: Sequence[float],
@@ -151,21 +166,32 @@ class RollResult:
     max_jump_deg: float
     tip_in_last_straight: bool
     healthy: bool
+    predicted_windup_deg: float = 0.0
 
 
 def roll_test(
     wire: GuidewireConfig, speed: float = math.pi / 2, hold: float = 2.0,
-    window: float = 0.05, timestep: float | None = None,
+    window: float = 0.05, timestep: float | None = None, grip: float = 0.0,
 ) -> RollResult:
     """Inserts ``wire`` through both bends, then turns the driver 360° at ``speed`` rad/s.
 
     See the module docstring for the definitions. The bend direction's reference chord runs
     between b and 2b from the wire's end, b = tip length + 2 mm, so it measures the pre-bent
     tip against the shaft just behind it, not the shaft's curve further back.
+
+    ``grip`` (N·m) resists the roll of the wire's last segment before its shaped part: the
+    whole torque once that segment rolls at ``speed``, in proportion below it. (A steeper,
+    Coulomb-like brake, applied explicitly each step, rings on the light tip segments.)
     """
-    from sim4endor.models.validation import drive_to, tip_bend_direction
+    from sim4endor.models.validation import drive_to, tip_bend_direction, torsional_compliance
 
     physics = bent_tube_physics(wire, timestep)
+    gripped = int(physics.wire_body_ids()[physics.shape_start_index() - 1])
+    lengths = segment_lengths(bench_wire(wire))
+    # The grip acts on the gripped segment as a whole: its middle, counted from the tip.
+    near = float(lengths[physics.shape_start_index():].sum() + 0.5
+                 * lengths[physics.shape_start_index() - 1])
+    windup = grip * torsional_compliance(bench_wire(wire), near, float(lengths[1:].sum()))
     back = wire.tip_length + 0.002
     drive_to(physics, INSERTION, 0.0, settle=0.5)
     tip_x = float(physics.tip_position()[0])
@@ -178,9 +204,13 @@ def roll_test(
     for k in range(1, turn_steps + round(hold / window) + 1):
         command = 2 * math.pi * min(k, turn_steps) / turn_steps
         physics.set_driver_targets(INSERTION, command)
-        physics.step(substeps)
+        for _ in range(substeps):
+            if grip:
+                _resist_roll(physics, gripped, grip, speed)
+            physics.step()
         if not physics.is_finite():
-            return RollResult(math.inf, math.inf, math.inf, math.inf, last_straight, False)
+            return RollResult(math.inf, math.inf, math.inf, math.inf, last_straight, False,
+                              math.degrees(windup))
         roll = tip_bend_direction(physics, back) - start
         # Unwrap against the previous reading.
         roll += 2 * math.pi * round((angles[-1] - roll) / (2 * math.pi))
@@ -195,4 +225,18 @@ def roll_test(
         max_jump_deg=float(jumps.max()),
         tip_in_last_straight=last_straight,
         healthy=not physics.warnings(),
+        predicted_windup_deg=math.degrees(windup),
     )
+
+
+def _resist_roll(physics: GuidewirePhysics, body: int, torque: float, speed: float) -> None:
+    """Sets ``body``'s applied torque against its roll about its own (x) axis: ``torque``
+    N·m at ``speed`` rad/s or more, in proportion below."""
+    model, data = physics.model.ptr, physics.data.ptr
+    velocity = np.zeros(6)
+    # World-oriented: a body's local frame here would be its inertial one, whose axes
+    # need not be the segment's.
+    mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, velocity, 0)
+    axis = data.xmat[body].reshape(3, 3)[:, 0]
+    roll_rate = float(velocity[:3] @ axis)
+    data.xfrc_applied[body, 3:] = -torque * float(np.clip(roll_rate / speed, -1.0, 1.0)) * axis

@@ -4,6 +4,8 @@
   load, against Euler–Bernoulli ``δ = F L³ / (3 E I)``.
 * :func:`tapered_cantilever` — the same for a wire whose E·I varies along it (a tapered
   core), against the integrated Euler–Bernoulli deflection ``δ = F ∫ (L − x)² / EI(x) dx``.
+* :func:`tapered_torsion` — the twist of the same clamped wire under an axial tip torque,
+  against ``θ = T ∫ ds / GJ(s)`` (:func:`torsional_compliance`).
 * :func:`tip_bend_direction` — the direction the pre-bent tip points to, about the shaft axis
   (for torque transmission: rotate the base, compare the tip's rotation).
 * :func:`escape_depth` — how far any wire point is outside the lumen (distance from the
@@ -112,9 +114,72 @@ def tapered_cantilever(
     return CantileverResult(deflection, force * unit, free_length, force)
 
 
-def _loaded_tip_deflection(
-    straight: GuidewireConfig, force: float, timestep: float, settle_time: float
-) -> float:
+def torsional_compliance(wire: GuidewireConfig, near: float, far: float) -> float:
+    """``∫ ds / GJ(s)`` (rad per N·m) over the wire from ``near`` to ``far`` metres from its
+    distal end: the twist a torque passed along that stretch winds into it (scipy's
+    adaptive quadrature, split at the profile's kinks)."""
+    from scipy.integrate import quad
+
+    kinks = [s for s, _ in wire.core_profile or () if near < s < far]
+    if near < wire.tip_length < far:
+        kinks.append(wire.tip_length)
+    value, _ = quad(lambda s: 1.0 / float(wire.torsional_rigidity(s)), near, far,
+                    points=sorted(kinks) or None, limit=200)
+    return float(value)
+
+
+@dataclass(frozen=True)
+class TorsionResult:
+    """Outcome of :func:`tapered_torsion` (SI units: rad, m, N·m)."""
+
+    twist: float
+    predicted: float
+    free_length: float
+    torque: float
+
+    @property
+    def relative_error(self) -> float:
+        """``|measured − predicted| / predicted``."""
+        return abs(self.twist - self.predicted) / self.predicted
+
+
+def tapered_torsion(
+    wire: GuidewireConfig, timestep: float = 0.005, settle_time: float = 3.0,
+    twist: float = 0.05,
+) -> TorsionResult:
+    """Clamps the straightened wire with its G·J(s) and twists its distal segment by an axial
+    torque; the prediction is ``T`` times :func:`torsional_compliance` over the free length.
+
+    As :func:`tapered_cantilever`: contacts off, the free length runs from the end of the first
+    (clamped) segment, and the torque gives about ``twist`` rad. The twist is read between the
+    clamped and the distal segment's frames, so the carriage's own rotation servo is not in it.
+    """
+    straight = wire.straightened()
+    free_length = straight.length - float(segment_lengths(straight)[0])
+    unit = torsional_compliance(straight, 0.0, free_length)
+    torque = twist / unit
+    physics = _clamped_free_wire(straight, timestep)
+    model, data = physics.model.ptr, physics.data.ptr
+    bodies = physics.wire_body_ids()
+    clamp, tip = int(bodies[0]), int(bodies[-1])
+    for _ in range(round(settle_time / model.opt.timestep)):
+        data.xfrc_applied[tip, 3:] = torque * data.xmat[tip].reshape(3, 3)[:, 0]
+        physics.step()
+    relative = np.zeros(4)
+    mujoco.mju_mulQuat(relative, _conjugate(data.xquat[clamp]), data.xquat[tip])
+    # The segments' x axes run along the wire, so the relative rotation is a roll about x.
+    measured = 2.0 * math.atan2(relative[1], relative[0])
+    return TorsionResult(measured, torque * unit, free_length, torque)
+
+
+def _conjugate(quat: FloatArray) -> FloatArray:
+    out = np.zeros(4)
+    mujoco.mju_negQuat(out, quat)
+    return out
+
+
+def _clamped_free_wire(straight: GuidewireConfig, timestep: float) -> GuidewirePhysics:
+    """The straight wire on its driver, far enough out of the sheath, with contacts off."""
     protrusion = max(DriverConfig().initial_protrusion, straight.tip_length + 0.003)
     driver = DriverConfig(
         initial_protrusion=protrusion, max_insertion=straight.length - protrusion - 0.003
@@ -122,8 +187,15 @@ def _loaded_tip_deflection(
     physics = GuidewirePhysics.from_vessel(
         None, SceneConfig(wire=straight, driver=driver, timestep=timestep)
     )
+    physics.model.ptr.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT  # free of the sheath
+    return physics
+
+
+def _loaded_tip_deflection(
+    straight: GuidewireConfig, force: float, timestep: float, settle_time: float
+) -> float:
+    physics = _clamped_free_wire(straight, timestep)
     model, data = physics.model.ptr, physics.data.ptr
-    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT  # free of the sheath
     start = physics.tip_position()
     tip_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE)
     tip_body = int(model.site_bodyid[tip_site])
