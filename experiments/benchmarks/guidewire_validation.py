@@ -47,8 +47,9 @@ Definitions:
   tip did not reach the last straight is listed in torque_roll_not_through instead.
 * torque_lag_gripped_deg (per tapered preset): the same roll with one tip shape (2 mm, 45°)
   and the hydrophobic coat on every preset, so only the core differs, once free and once
-  gripped behind the tip by torque.GRIP (10 µN·m); per preset the grip, the lag of both, the wind-up
-  the grip adds (gripped − free) and the twist T ∫ ds / GJ(s) predicts for it. A stiffer core
+  gripped behind the tip by torque.GRIP (10 µN·m); per preset the grip, the lag of both at the
+  turn's end, the wind-up the grip adds (gripped − free lag, averaged over the turn from 1 s
+  on: torque.grip_windup_deg) and the twist T ∫ ds / GJ(s) predicts for it. A stiffer core
   transmits the grip's load with less wind-up; the free lags are in no order by core.
 * max_penetration_over_radius (per preset; sim4endor.models.push): the wire driven at full
   speed into branch A's closed end (40 mm of travel past the target) and pushed at the
@@ -169,7 +170,7 @@ def gripped_rolls() -> dict[str, dict[str, float]]:
         free = torque.roll_test(wire)
         gripped = torque.roll_test(wire, grip=torque.GRIP)
         out[name] = {"grip_n_m": torque.GRIP, "free": free.lag_deg, "gripped": gripped.lag_deg,
-                     "windup": gripped.lag_deg - free.lag_deg,
+                     "windup": torque.grip_windup_deg(free, gripped),
                      "predicted_windup": gripped.predicted_windup_deg,
                      "gripped_whip": gripped.whip}
     return out

@@ -20,7 +20,8 @@ With a ``grip`` the wire's roll is resisted just behind its shaped tip by a fric
 where a lesion or a tight ostium holds it. That torque no longer comes from the wire's own
 bending stiffness, as the bends' friction does, so the wind-up it adds (the lag with the grip
 minus the lag without) is ``grip · ∫ ds / GJ(s)`` from the gripped segment to the clamp
-(``predicted_windup_deg``): a stiffer core transmits it with less lag. Without a grip the
+(``predicted_windup_deg``; measured by :func:`grip_windup_deg`): a stiffer core transmits
+it with less lag. Without a grip the
 bends' friction torque scales with the core's E·I and the wind-up with E·I / G·J = 1 + ν, so
 the lag does not depend on the core (docs/guidewire.md).
 """
@@ -158,7 +159,11 @@ def held_tips(wire: GuidewireConfig, holds: Sequence[float],
 
 @dataclass(frozen=True)
 class RollResult:
-    """Outcome of :func:`roll_test` (degrees; ``whip`` is a ratio of speeds)."""
+    """Outcome of :func:`roll_test` (degrees; ``whip`` is a ratio of speeds).
+
+    ``command_deg`` and ``tip_deg`` are the commanded roll and the tip's, once per ``window``
+    from the start of the turn (empty if the simulation diverged).
+    """
 
     lag_deg: float
     residual_deg: float
@@ -167,6 +172,8 @@ class RollResult:
     tip_in_last_straight: bool
     healthy: bool
     predicted_windup_deg: float = 0.0
+    command_deg: tuple[float, ...] = ()
+    tip_deg: tuple[float, ...] = ()
 
 
 def roll_test(
@@ -186,12 +193,14 @@ def roll_test(
     from sim4endor.models.validation import drive_to, tip_bend_direction, torsional_compliance
 
     physics = bent_tube_physics(wire, timestep)
-    gripped = int(physics.wire_body_ids()[physics.shape_start_index() - 1])
-    lengths = segment_lengths(bench_wire(wire))
-    # The grip acts on the gripped segment as a whole: its middle, counted from the tip.
-    near = float(lengths[physics.shape_start_index():].sum() + 0.5
-                 * lengths[physics.shape_start_index() - 1])
-    windup = grip * torsional_compliance(bench_wire(wire), near, float(lengths[1:].sum()))
+    shape_start = physics.shape_start_index()
+    gripped = int(physics.wire_body_ids()[shape_start - 1])
+    bench = bench_wire(wire)
+    lengths = segment_lengths(bench)
+    # From the gripped segment's middle (the grip acts on it as a whole) to the clamp at the
+    # end of the first, welded segment, both counted from the tip.
+    near = float(lengths[shape_start:].sum() + 0.5 * lengths[shape_start - 1])
+    windup = grip * torsional_compliance(bench, near, float(lengths[1:].sum()))
     back = wire.tip_length + 0.002
     drive_to(physics, INSERTION, 0.0, settle=0.5)
     tip_x = float(physics.tip_position()[0])
@@ -226,7 +235,24 @@ def roll_test(
         tip_in_last_straight=last_straight,
         healthy=not physics.warnings(),
         predicted_windup_deg=math.degrees(windup),
+        command_deg=tuple(command_arr.tolist()),
+        tip_deg=tuple(tip.tolist()),
     )
+
+
+def grip_windup_deg(free: RollResult, gripped: RollResult, window: float = 0.05,
+                    after: float = 1.0) -> float:
+    """The lag a grip adds to a roll (degrees): the gripped run's lag minus the free run's,
+    averaged over the turn from ``after`` seconds to its end (both runs of :func:`roll_test`
+    with the same wire and ``window``). The lag swings by tens of degrees as the tip's bend
+    turns through the bends' planes, so one reading, such as the lag at the turn's end,
+    carries that swing's differences too; the average over the turn does not."""
+    command = np.asarray(free.command_deg)
+    if not command.size or not gripped.tip_deg:
+        return math.inf  # a run that diverged
+    end = int(np.argmax(command >= command.max() - 1e-9))
+    added = np.asarray(free.tip_deg) - np.asarray(gripped.tip_deg)  # same commands in both
+    return float(added[round(after / window):end + 1].mean())
 
 
 def _resist_roll(physics: GuidewirePhysics, body: int, torque: float, speed: float) -> None:
