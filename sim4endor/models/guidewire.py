@@ -128,6 +128,11 @@ class GuidewireConfig:
             the tip wandering over millimetres at friction 0.03); with elliptic cones it
             does (docs/guidewire.md, "Friction cones"). The catalogue's presets set
             ``"elliptic"``; a scene holds one wire, so the wire's choice is the scene's.
+        contact_margin: Distance (m) from a wall at which the wire's contacts start to act:
+            MuJoCo's geom margin, so the wire collides as if ``2 × contact_margin`` wider.
+            0 collides at the jacket's true radius, as the catalogue's presets do; the
+            default 0.1 mm is the ``paper`` preset's, bit for bit the published model
+            (docs/guidewire.md, "Contact at the true radius").
         core_profile: Optional tapered core: ``((s, d), ...)`` pairs of distance from the
             distal tip ``s`` (m, strictly increasing, starting at 0) and core diameter ``d``
             (m), linear in between and constant beyond the last pair. ``None`` (default)
@@ -159,6 +164,7 @@ class GuidewireConfig:
     chain_bodies: int | None = None
     max_timestep: float | None = None
     friction_cone: str | None = None
+    contact_margin: float = 1e-4
     core_profile: tuple[tuple[float, float], ...] | None = None
 
     def __post_init__(self) -> None:
@@ -211,9 +217,11 @@ class GuidewireConfig:
                 "GuidewireConfig.chain_bodies must be >= tip_segments (the tip stays in one "
                 f"chain), got {self.chain_bodies} with {self.tip_segments} tip segments."
             )
-        if self.friction < 0 or self.damping_time < 0 or self.armature_time < 0:
+        if not all(math.isfinite(value) and value >= 0 for value in (
+                self.friction, self.damping_time, self.armature_time, self.contact_margin)):
             raise GuidewireConfigError(
-                "GuidewireConfig.friction, damping_time and armature_time must be >= 0."
+                "GuidewireConfig.friction, damping_time, armature_time and contact_margin "
+                "must be finite and >= 0."
             )
         if self.max_timestep is not None and not (
             math.isfinite(self.max_timestep) and self.max_timestep > 0
@@ -605,6 +613,7 @@ class _Segments:
                 size=[config.radius, 0.0, 0.0],
                 density=config.density * config.mass_scale,
                 friction=[config.friction, 0.005, 0.0001],
+                margin=config.contact_margin,
             )
             _join_plugin(body, plugin)
         return body
