@@ -2,6 +2,7 @@
 
     python experiments/benchmarks/guidewire_convergence.py [--cases full|quick] [--json]
     python experiments/benchmarks/guidewire_convergence.py --sweep [--json]   # trade-off
+    python experiments/benchmarks/guidewire_convergence.py --wire '{"mass_scale": 100, ...}'
 
 A mass-scaled wire (``GuidewireConfig.mass_scale``, ``armature_time``) is a numerical device:
 a real 0.014" wire weighs a tenth of a gram and moves quasi-statically. Its trajectories are
@@ -23,6 +24,8 @@ a coronary tree and in the vascular phantom; ``quick`` is two coronary trees and
 armature scaled alike, time step 5 / 2.5 / 1.25 ms), each against its own reference, and
 prints the CPU cost of each as env steps per second: the trade-off curve of
 docs/guidewire.md (``experiments/figures/convergence_figure.py`` draws it from the JSON).
+``--wire`` changes fields of every case's wire (``GuidewireConfig`` fields as JSON, e.g.
+another ``integrator``, ``damping_time`` or ``contact_margin``) before anything is recorded.
 
 Replays step the physics directly (no episode ends), so both runs see every action. The
 cases run in spawned worker processes, one per core.
@@ -32,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import math
 import multiprocessing
 import sys
@@ -247,34 +251,51 @@ def run_jobs(jobs: Sequence[tuple[Case, GuidewireConfig | None]], workers: int
         return pool.map(_compare_job, jobs, chunksize=1)
 
 
-def sweep_wire(case: Case, mass_scale: float, timestep: float) -> GuidewireConfig:
-    """The case's wire at ``mass_scale`` (armature scaled alike) and ``timestep``."""
-    wire = shipped_wire(case)
+def sweep_wire(wire: GuidewireConfig, mass_scale: float, timestep: float) -> GuidewireConfig:
+    """``wire`` at ``mass_scale`` (armature scaled alike) and ``timestep``."""
     factor = mass_scale / wire.mass_scale
     return dataclasses.replace(wire, mass_scale=mass_scale,
                                armature_time=wire.armature_time * math.sqrt(factor),
                                max_timestep=timestep)
 
 
+def wire_overrides(text: str) -> dict[str, Any]:
+    """``--wire``: a JSON object of GuidewireConfig fields."""
+    fields = {f.name for f in dataclasses.fields(GuidewireConfig)}
+    value = json.loads(text)
+    if not isinstance(value, dict) or not set(value) <= fields:
+        raise argparse.ArgumentTypeError(
+            f"--wire takes a JSON object of GuidewireConfig fields ({sorted(fields)}), "
+            f"got {text!r}")
+    return value
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cases", choices=sorted(CASES), default="full")
+    parser.add_argument("--wire", type=wire_overrides, default={},
+                        help="GuidewireConfig fields (JSON) changed on every case's wire")
     parser.add_argument("--sweep", action="store_true",
                         help="the coronary cases at every setting of SWEEP (the trade-off)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     cases = CASES[args.cases]
+
+    def wire(case: Case) -> GuidewireConfig:
+        return dataclasses.replace(shipped_wire(case), **args.wire)
+
     if args.sweep:
         coronary = [case for case in cases if case.domain == "coronary"]
         for mass, step in SWEEP:
-            rows = run_jobs([(case, sweep_wire(case, mass, step)) for case in coronary],
+            rows = run_jobs([(case, sweep_wire(wire(case), mass, step)) for case in coronary],
                             args.workers)
-            result = {"mass_scale": mass, "timestep_s": step, **summary(rows), "cases": rows}
+            result = {"mass_scale": mass, "timestep_s": step, "wire": args.wire,
+                      **summary(rows), "cases": rows}
             _print(result, args.json)
         return
-    rows = run_jobs([(case, None) for case in cases], args.workers)
-    _print({**summary(rows), "cases": rows}, args.json)
+    rows = run_jobs([(case, wire(case)) for case in cases], args.workers)
+    _print({"wire": args.wire, **summary(rows), "cases": rows}, args.json)
 
 
 def _print(result: Mapping[str, Any], as_json: bool) -> None:

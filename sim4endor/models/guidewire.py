@@ -66,6 +66,9 @@ SECONDARY_CURVE_LENGTH = 0.002
 #: MuJoCo's friction cones by the name GuidewireConfig.friction_cone takes.
 FRICTION_CONES = types.MappingProxyType({"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL,
                                          "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC})
+#: MuJoCo's integrators by the name GuidewireConfig.integrator takes.
+INTEGRATORS = types.MappingProxyType({"implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+                                      "discrete": mujoco.mjtIntegrator.mjINT_DISCRETE})
 
 
 class GuidewireConfigError(Sim4EndoRError, ValueError):
@@ -128,6 +131,11 @@ class GuidewireConfig:
             the tip wandering over millimetres at friction 0.03); with elliptic cones it
             does (docs/guidewire.md, "Friction cones"). The catalogue's presets set
             ``"elliptic"``; a scene holds one wire, so the wire's choice is the scene's.
+        integrator: MuJoCo integrator of the scene this wire is simulated in:
+            ``"implicitfast"``, ``"discrete"`` (MuJoCo 3.13 on: the constraint solve in the
+            metric of mass plus implicit damping), or ``None`` (default) for the scene's own
+            (``mjcf/options.xml``: implicitfast). Numerical, like ``friction_cone``;
+            docs/guidewire.md, "Convergence", measures both.
         contact_margin: Distance (m) from a wall at which the wire's contacts start to act:
             MuJoCo's geom margin, so the wire collides as if ``2 × contact_margin`` wider.
             0 collides at the jacket's true radius, as the catalogue's presets do; the
@@ -164,6 +172,7 @@ class GuidewireConfig:
     chain_bodies: int | None = None
     max_timestep: float | None = None
     friction_cone: str | None = None
+    integrator: str | None = None
     contact_margin: float = 1e-4
     core_profile: tuple[tuple[float, float], ...] | None = None
 
@@ -233,6 +242,11 @@ class GuidewireConfig:
             raise GuidewireConfigError(
                 f"GuidewireConfig.friction_cone must be one of {list(FRICTION_CONES)} or None, "
                 f"got {self.friction_cone!r}."
+            )
+        if self.integrator not in (None, *INTEGRATORS):
+            raise GuidewireConfigError(
+                f"GuidewireConfig.integrator must be one of {list(INTEGRATORS)} or None, "
+                f"got {self.integrator!r}."
             )
         if self.core_profile is not None:
             _check_core_profile(self.core_profile, self.outer_diameter)

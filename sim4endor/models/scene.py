@@ -29,6 +29,7 @@ from sim4endor.models import constants as names
 from sim4endor.models.driver import DriverConfig, add_driver, add_sheath
 from sim4endor.models.guidewire import (
     FRICTION_CONES,
+    INTEGRATORS,
     GuidewireConfig,
     add_guidewire,
     chain_starts,
@@ -377,6 +378,8 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
         spec.option.timestep = min(spec.option.timestep, wire.max_timestep)
     if wire.friction_cone is not None:
         spec.option.cone = FRICTION_CONES[wire.friction_cone]
+    if wire.integrator is not None:
+        spec.option.integrator = INTEGRATORS[wire.integrator]
     if vessel is None:
         inlet, direction = np.zeros(3), np.array([1.0, 0.0, 0.0])
         straight = False
