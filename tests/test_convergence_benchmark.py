@@ -50,6 +50,7 @@ def test_a_case_reports_tip_and_force_differences_judged_by_the_targets() -> Non
     for key in ("tip_mean_mm", "tip_max_mm", "tip_max_radii", "wall_force_diff_max_n"):
         assert math.isfinite(row[key]) and row[key] >= 0
     assert row["tip_max_mm"] >= row["tip_mean_mm"]
+    assert 0 <= row["penetration_over_radius"]["shipped"] < 1
     within = {**row, "tip_max_mm": 0.4, "tip_mean_mm": 0.05}
     assert convergence.summary([within])["converged"]
     assert not convergence.summary([{**within, "tip_max_mm": 0.6}])["converged"]

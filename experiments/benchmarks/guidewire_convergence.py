@@ -159,11 +159,14 @@ def record(case: Case, wire: GuidewireConfig) -> NDArray[np.float64]:
 @dataclass
 class Trace:
     """A replay: per control step, the tip (m), the lumen radius at it (m) and the total wall
-    force averaged over the step's physics steps (N); the thread CPU seconds of stepping."""
+    force averaged over the step's physics steps (N); the deepest overlap of a wire capsule
+    with a wall hull at any physics step (m, MuJoCo's contact distance); the thread CPU
+    seconds of stepping."""
 
     tips: NDArray[np.float64]
     radii: NDArray[np.float64]
     wall_force: NDArray[np.float64]
+    penetration: float
     cpu_s: float
     unstable: bool
 
@@ -177,6 +180,7 @@ def replay(case: Case, wire: GuidewireConfig, actions: NDArray[np.float64]) -> T
     graph = task.anatomy.vessel.centerline
     tips, radii, forces = [], [], []
     unstable = False
+    penetration = 0.0
     start = time.thread_time()
     for action in actions:
         task.before_step(action, physics)
@@ -184,6 +188,8 @@ def replay(case: Case, wire: GuidewireConfig, actions: NDArray[np.float64]) -> T
         for _ in range(substeps):
             physics.step()
             force += physics.wall_contact_force()
+            penetration = max(penetration, -float(physics.wall_contact_distances().min(
+                initial=0.0)))
         if physics.warnings() or not physics.is_finite():
             unstable = True
             break
@@ -192,7 +198,7 @@ def replay(case: Case, wire: GuidewireConfig, actions: NDArray[np.float64]) -> T
         radii.append(graph.radius_at_projection(graph.project(tip)))
         forces.append(force / substeps)
     return Trace(np.array(tips).reshape(-1, 3), np.array(radii), np.array(forces),
-                 time.thread_time() - start, unstable)
+                 penetration, time.thread_time() - start, unstable)
 
 
 def compare(case: Case, wire: GuidewireConfig | None = None) -> dict[str, Any]:
@@ -216,6 +222,8 @@ def compare(case: Case, wire: GuidewireConfig | None = None) -> dict[str, Any]:
         "wall_force_mean_n": float(shipped.wall_force.mean()) if steps else math.nan,
         "wall_force_diff_mean_n": float(force_gap.mean()) if steps else math.nan,
         "wall_force_diff_max_n": float(force_gap.max()) if steps else math.nan,
+        "penetration_over_radius": {"shipped": shipped.penetration / wire.radius,
+                                    "reference": light.penetration / wire.radius},
         "env_steps_per_cpu_s": len(shipped.tips) / shipped.cpu_s if shipped.cpu_s else math.nan,
         "reference_env_steps_per_cpu_s": (len(light.tips) / light.cpu_s if light.cpu_s
                                           else math.nan),
@@ -233,6 +241,8 @@ def summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         "wall_force_diff_max_n": max(row["wall_force_diff_max_n"] for row in rows),
         "wall_force_diff_mean_n": float(np.mean([row["wall_force_diff_mean_n"] for row in rows])),
         "env_steps_per_cpu_s": float(np.mean([row["env_steps_per_cpu_s"] for row in rows])),
+        "penetration_over_radius": max(row["penetration_over_radius"]["shipped"]
+                                       for row in rows),
         "unstable_cases": unstable,
         "converged": worst <= MAX_TARGET_MM and mean <= MEAN_TARGET_MM and not unstable,
     }
@@ -307,13 +317,15 @@ def _print(result: Mapping[str, Any], as_json: bool) -> None:
     print(f"{head}tip difference max {result['tip_max_mm']:.3f} mm (target "
           f"{MAX_TARGET_MM}), mean {result['tip_mean_mm']:.3f} mm (target {MEAN_TARGET_MM}); "
           f"wall force difference max {result['wall_force_diff_max_n']:.3f} N; "
-          f"{result['env_steps_per_cpu_s']:.0f} env steps per CPU s; "
+          f"{result['env_steps_per_cpu_s']:.0f} env steps per CPU s; deepest hull overlap "
+          f"{result['penetration_over_radius']:.2f} wire radii; "
           f"converged: {result['converged']}", flush=True)
     for row in result["cases"]:
         print(f"  {row['case']:34s} {row['compared_steps']:4d} steps  tip mean "
               f"{row['tip_mean_mm']:.3f} max {row['tip_max_mm']:.3f} mm ({row['tip_max_radii']:.2f}"
               f" radii)  wall force {row['wall_force_mean_n']:.3f} N, diff mean "
-              f"{row['wall_force_diff_mean_n']:.3f} max {row['wall_force_diff_max_n']:.3f} N"
+              f"{row['wall_force_diff_mean_n']:.3f} max {row['wall_force_diff_max_n']:.3f} N, "
+              f"overlap {row['penetration_over_radius']['shipped']:.2f} r"
               + ("  UNSTABLE" if any(row["unstable"].values()) else ""), flush=True)
 
 
