@@ -33,9 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from sim4endor import suite
-from sim4endor.tasks.navigation import INLET_LABEL
 from sim4endor.tasks.tip_frame import PathToTarget
-from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph
 
 #: Where the diameters and directions are read (m): upstream of the junction, into the branch.
 UPSTREAM, INTO = 0.002, 0.003

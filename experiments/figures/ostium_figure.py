@@ -49,9 +49,8 @@ import numpy as np
 
 from sim4endor import suite
 from sim4endor.tasks.expert import CenterlineExpert
-from sim4endor.tasks.navigation import INLET_LABEL
 from sim4endor.tasks.tip_frame import PathToTarget
-from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph
 
 
 class Row(NamedTuple):

@@ -36,7 +36,7 @@ from sim4endor.models.guidewire import (
 )
 from sim4endor.vessels import CENTERLINE_FILE, Vessel
 from sim4endor.vessels.axis import branch_chains
-from sim4endor.vessels.centerline import CenterlineGraph, arc_lengths
+from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph, arc_lengths
 from sim4endor.vessels.manifest import MANIFEST_FILE
 
 #: How wide a tapered-core wire's pre-bent tip may be, in (inlet bore radius − wire radius),
@@ -130,7 +130,7 @@ def fit_travel(vessel: Vessel, base: SceneConfig | None = None, margin: float = 
     """Returns ``base`` with the driver's travel the deepest target's centerline distance from
     the inlet plus ``margin``, and a wire just long enough for it (:func:`with_travel`)."""
     graph = vessel.centerline
-    from_inlet = graph.geodesic_from(graph.labels["inlet"])
+    from_inlet = graph.geodesic_from(graph.labels[INLET_LABEL])
     depth = max(float(from_inlet[graph.labels[name]]) for name in vessel.targets)
     return with_travel(base or SceneConfig(), depth + margin)
 

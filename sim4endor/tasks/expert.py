@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 from sim4endor import rewards
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.tasks.anatomy import Anatomy
-from sim4endor.vessels.centerline import Projection
+from sim4endor.vessels.centerline import INLET_LABEL, Projection
 
 if TYPE_CHECKING:  # navigation imports this module for its wrong-branch starts
     from sim4endor.tasks.navigation import NavigationTask
@@ -490,8 +490,6 @@ def _along_path(distance: rewards.ManifoldDistance, neighbours: list[list[int]],
 
 def _path_nodes(distance: rewards.ManifoldDistance, neighbours: list[list[int]]) -> set[int]:
     """The centerline nodes on the path from the inlet to the target of ``distance``."""
-    from sim4endor.tasks.navigation import INLET_LABEL  # navigation imports this module
-
     inlet = int(distance.graph.labels[INLET_LABEL])
     return set(_to_target(distance.node_distances, neighbours, inlet))
 

@@ -35,12 +35,11 @@ from sim4endor.tasks.anatomy import Anatomy, AnatomySource
 from sim4endor.tasks.config import NavigationConfig, TaskConfigError
 from sim4endor.tasks.fluoroscopy import Fluoroscope
 from sim4endor.tasks.tip_frame import PathToTarget, TipView, tip_view
-from sim4endor.vessels.centerline import Projection
+from sim4endor.vessels.centerline import INLET_LABEL, Projection
 
 FloatArray = NDArray[np.float64]
 
 #: Centerline label of the inlet node, which every built vessel has.
-INLET_LABEL = "inlet"
 
 #: Failure reasons, in the order they are checked.
 FAILURES: tuple[str, ...] = (

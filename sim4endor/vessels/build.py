@@ -35,7 +35,7 @@ from sim4endor._atomic import atomic_directory
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels import CENTERLINE_FILE, SCENE_FILE, Vessel, load
 from sim4endor.vessels.axis import AxisSamples, branch_chains, sample_axis
-from sim4endor.vessels.centerline import CenterlineGraph, arc_lengths
+from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph, arc_lengths
 from sim4endor.vessels.checks import (
     CheckParams,
     inlet_cap,
@@ -250,7 +250,7 @@ def _labelled(
     graph: CenterlineGraph, inlet_node: int, targets: Mapping[str, np.ndarray]
 ) -> CenterlineGraph:
     labels = dict(graph.labels)
-    labels["inlet"] = inlet_node
+    labels[INLET_LABEL] = inlet_node
     for name, point in targets.items():
         labels[name] = int(np.argmin(np.linalg.norm(graph.nodes - point, axis=1)))
     return CenterlineGraph(
@@ -262,7 +262,7 @@ def _require_connected(graph: CenterlineGraph, name: str, extracted: bool) -> No
     """Raises :class:`BuildError` unless every labelled node is joined to the inlet along the
     centerline: a target apart from it can be neither navigated to nor measured."""
     component = graph.components()
-    inlet = component[graph.labels["inlet"]]
+    inlet = component[graph.labels[INLET_LABEL]]
     apart = sorted(label for label, node in graph.labels.items() if component[node] != inlet)
     if apart:
         source = "extracted from the mesh" if extracted else "given"

@@ -25,6 +25,9 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 SCHEMA_VERSION = 1
+#: The label of the inlet node of every vessel's graph (the build and the generators set it;
+#: the tasks measure the path to a target from it).
+INLET_LABEL = "inlet"
 
 
 def arc_lengths(points: FloatArray) -> FloatArray:

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from sim4endor.vessels.centerline import CenterlineGraph, arc_lengths
+from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph, arc_lengths
 from sim4endor.vessels.generators.paths import (
     Arc,
     FloatArray,
@@ -25,8 +25,6 @@ from sim4endor.vessels.generators.tubes import (
     clearance_violations,
     lumen_mesh,
 )
-
-INLET_LABEL = "inlet"
 
 
 @dataclass(frozen=True)
