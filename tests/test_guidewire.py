@@ -9,9 +9,9 @@ import mujoco
 import numpy as np
 import pytest
 
+from sim4endor.benches import validation
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
-from sim4endor.models import validation
 from sim4endor.models.guidewire import (
     STAINLESS_STEEL,
     GuidewireConfig,

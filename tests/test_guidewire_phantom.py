@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from sim4endor import vessels
-from sim4endor.models import validation
+from sim4endor.benches import validation
 from sim4endor.models.scene import config_for_vessel
 from sim4endor.physics import GuidewirePhysics
 

@@ -102,3 +102,14 @@ def test_the_package_imports_form_no_circle() -> None:
     graph = import_graph()
     assert "sim4endor.tasks.expert" in graph["sim4endor.tasks.starts"]  # the graph is read
     assert circles(graph) == []
+
+
+def test_the_models_import_nothing_built_on_them() -> None:
+    # sim4endor.physics builds on the models; the bench tests that drive the physics live in
+    # sim4endor.benches, above it (issue 67).
+    graph = import_graph()
+    above = {"sim4endor.physics", "sim4endor.suite", "sim4endor.benches"}
+    for name, imported in graph.items():
+        if name.startswith("sim4endor.models"):
+            assert not {m for m in imported if m.split(".")[:2] != ["sim4endor", "models"]
+                        and any(m == a or m.startswith(a + ".") for a in above)}, name

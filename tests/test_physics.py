@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from guidewire_helpers import write_tube_vessel
 
+from sim4endor.benches import validation
 from sim4endor.models import constants as names
-from sim4endor.models import validation
 from sim4endor.models.scene import SceneConfig
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.vessels import Vessel

@@ -10,8 +10,9 @@ import pytest
 from navigation_helpers import require_vessel
 
 from sim4endor import vessels
+from sim4endor.benches import validation
 from sim4endor.models import constants as names
-from sim4endor.models import validation, wires
+from sim4endor.models import wires
 from sim4endor.models.guidewire import GuidewireConfig, GuidewireConfigError, chain_starts
 from sim4endor.models.scene import config_for_vessel
 from sim4endor.physics import GuidewirePhysics

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from sim4endor import vessels
-from sim4endor.models import push, torque, validation, wires
+from sim4endor.benches import push, torque, validation
+from sim4endor.models import wires
 from sim4endor.models.driver import DriverConfig
 from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.models.scene import SceneConfig

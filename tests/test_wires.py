@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from sim4endor import suite, vessels
+from sim4endor.benches import validation
 from sim4endor.models import constants as names
-from sim4endor.models import tip_load, validation, wires
+from sim4endor.models import tip_load, wires
 from sim4endor.models.guidewire import (
     GuidewireConfig,
     GuidewireConfigError,

@@ -41,7 +41,7 @@ Definitions:
   with real mass and with the default mass scaling (extra damping, 60 s to settle).
 * tapered_torsion_rel_error: the same 30 mm wires, clamped, twisted by an axial torque on
   their distal segment (about 0.05 rad); static twist vs T ∫ ds / GJ(s); the largest error.
-* torque_lag_deg, whip (per preset; sim4endor.models.torque): the wire inserted through a
+* torque_lag_deg, whip (per preset; sim4endor.benches.torque): the wire inserted through a
   2 mm-radius S of two 90° bends (bend radius 8 mm) until its tip is 20 mm into the last
   straight; the driver then turns 360° at 90°/s and holds 2 s. Lag: commanded roll minus the
   roll of the tip's bend direction when the command reaches 360°; whip: the largest tip roll
@@ -54,7 +54,7 @@ Definitions:
   turn's end, the wind-up the grip adds (gripped − free lag, averaged over the turn from 1 s
   on: torque.grip_windup_deg) and the twist T ∫ ds / GJ(s) predicts for it. A stiffer core
   transmits the grip's load with less wind-up; the free lags are in no order by core.
-* max_penetration_over_radius (per preset; sim4endor.models.push): the wire driven at full
+* max_penetration_over_radius (per preset; sim4endor.benches.push): the wire driven at full
   speed into branch A's closed end (40 mm of travel past the target) and pushed at the
   driver's 0.5 N limit for 6 s; the deepest overlap of a wire capsule with a wall hull
   (MuJoCo's contact distance, every physics step) in wire radii, the largest over four
@@ -92,7 +92,8 @@ from dm_control.rl import control
 
 from sim4endor import _json as strict_json
 from sim4endor import vessels
-from sim4endor.models import push, tip_load, torque, validation, wires
+from sim4endor.benches import push, torque, validation
+from sim4endor.models import tip_load, wires
 from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.models.scene import SceneConfig, config_for_vessel
 from sim4endor.physics import GuidewirePhysics

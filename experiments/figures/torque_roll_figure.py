@@ -5,7 +5,7 @@ bends").
 
 One panel per tapered catalogue preset, each shaped alike (``--tip``, default 2 mm at 45°) and
 with the hydrophobic coat, so that only the core differs: the tip's lag behind the driver's
-commanded roll (``sim4endor.models.torque.roll_test``) against time, lying free in the bends
+commanded roll (``sim4endor.benches.torque.roll_test``) against time, lying free in the bends
 and gripped behind the tip by ``torque.GRIP``, with the free lag plus the wind-up the core's
 integrated 1/G·J predicts for the grip, and in each title the lag the grip adds on average from
 1 s to the turn's end (``torque.grip_windup_deg``).
@@ -22,7 +22,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from sim4endor.models import torque, wires
+from sim4endor.benches import torque
+from sim4endor.models import wires
 
 #: Presets drawn: the catalogue's tapered cores, softest first.
 PRESETS = ("workhorse", "intermediate", "stiff")

@@ -9,7 +9,7 @@ the servo saturates once its target leads the carriage by limit / stiffness). It
   so it is measured against the collision geometry, not the nominal lumen;
 * the largest total wall force (N, read every physics step; on a blow-up, up to the step
   that diverged), whether any wire point (its axis) left the nominal lumen by more than
-  ``escape_tolerance`` (:func:`sim4endor.models.validation.escape_depth`; a non-finite state
+  ``escape_tolerance`` (:func:`sim4endor.benches.validation.escape_depth`; a non-finite state
   counts as having left, since MuJoCo resets it and the wire can no longer be located), and
   whether the state became non-finite or MuJoCo warned.
 """
@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 from dm_control.rl import control
 
+from sim4endor.benches.validation import escape_depth
 from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.models.scene import SceneConfig, config_for_vessel
 from sim4endor.physics import GuidewirePhysics
@@ -77,7 +78,6 @@ def push_test(
     With ``stop_push_force`` the run ends (``stopped``) after the first control step whose
     driver push exceeds it: the navigation task's ``push_force`` failure, checked the same way.
     """
-    from sim4endor.models.validation import escape_depth
 
     physics = push_physics(vessel, wire, force_limit, timestep)
     tolerance = wire.radius if escape_tolerance is None else escape_tolerance

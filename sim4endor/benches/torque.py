@@ -9,7 +9,7 @@ a small test lumen, a 2 mm-radius tube along an S of two 90° bends (centerline 
 Definitions (the benchmark's ``torque_lag_deg`` and ``whip``):
 
 * lag: the commanded roll minus the roll of the tip's bend direction
-  (:func:`sim4endor.models.validation.tip_bend_direction`, unwrapped, relative to its value
+  (:func:`sim4endor.benches.validation.tip_bend_direction`, unwrapped, relative to its value
   before the turn) at the moment the command reaches 360°; ``residual_deg`` is the same
   after ``hold`` seconds of holding;
 * whip: the largest tip roll speed over any ``window`` (50 ms, one control step) during the
@@ -39,6 +39,7 @@ import numpy as np
 from dm_control.mujoco import wrapper
 from numpy.typing import NDArray
 
+from sim4endor.benches.validation import drive_to, tip_bend_direction, torsional_compliance
 from sim4endor.models import constants as names
 from sim4endor.models.driver import DriverConfig
 from sim4endor.models.guidewire import GuidewireConfig, segment_lengths
@@ -145,7 +146,6 @@ def held_tips(wire: GuidewireConfig, holds: Sequence[float],
     A position is non-finite once the simulation is unhealthy (non-finite state or a MuJoCo
     warning), so a difference with it never passes for a small shift.
     """
-    from sim4endor.models.validation import drive_to
 
     physics = bent_tube_physics(wire, timestep)
     drive_to(physics, INSERTION, 0.0)
@@ -190,7 +190,6 @@ def roll_test(
     whole torque once that segment rolls at ``speed``, in proportion below it. (A steeper,
     Coulomb-like brake, applied explicitly each step, rings on the light tip segments.)
     """
-    from sim4endor.models.validation import drive_to, tip_bend_direction, torsional_compliance
 
     physics = bent_tube_physics(wire, timestep)
     shape_start = physics.shape_start_index()
