@@ -2,14 +2,21 @@
 
 from __future__ import annotations
 
+import functools
+import logging
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 
+from sim4endor import vessels
 from sim4endor.cli import main
+from sim4endor.vessels import build as build_module
+from sim4endor.vessels.checks import CheckParams
 from sim4endor.vessels.meshio import MeshInputError, prepare_lumen, read_mesh
+from sim4endor.vessels.walls import WallParams, WallParamsError
 
 
 def tube(radius: float = 1.5e-3, height: float = 20e-3) -> trimesh.Trimesh:
@@ -123,3 +130,85 @@ def test_cli_error_is_one_line_and_leaves_nothing(tmp_path: Path,
     err = capsys.readouterr().err.strip()
     assert status == 2 and "--units m" in err and len(err.splitlines()) == 1
     assert not out.exists() and not any(p.name.startswith(".out") for p in tmp_path.iterdir())
+
+
+def test_the_units_error_comes_before_any_heavy_work(monkeypatch: pytest.MonkeyPatch) -> None:
+    # A metre mesh declared as mm is refused on its extent, before the repairs, the component
+    # split and the ray casts that cost a real CTA surface seconds and gigabytes.
+    def never(*args: object, **kwargs: object) -> None:
+        raise AssertionError("heavy work started before the units check")
+
+    metres = tube()
+    monkeypatch.setattr(trimesh.Trimesh, "merge_vertices", never)
+    with pytest.raises(MeshInputError, match=r"mm across.*--units m"):
+        prepare_lumen(metres, units="mm")
+
+
+def test_a_coarse_triangulation_is_remeshed_before_the_build() -> None:
+    # A capped 2 mm cylinder of 60 mm triangles: the ray-cast radius of its long faces reads
+    # 16 mm, and its wall pieces closed the lumen (issue 67).
+    coarse = trimesh.creation.cylinder(radius=2.0, height=60.0)
+    prepared = prepare_lumen(coarse, units="mm")
+    assert prepared.report.remeshed_faces > 10 * len(coarse.faces)
+    assert prepared.radius_estimate == pytest.approx(2e-3, rel=0.05)
+    assert prepared.mesh.edges_unique_length.max() <= 0.5 * prepared.radius_estimate + 1e-9
+    fine = prepare_lumen(tube(), units="m")  # already fine: left as it is
+    assert fine.report.remeshed_faces == 0
+
+
+def _build(tmp_path: Path, mesh: trimesh.Trimesh, *extra: str) -> tuple[int, Path]:
+    path = tmp_path / "lumen.stl"
+    mesh.export(path)
+    out = tmp_path / "out"
+    status = main(["vessel", "build", str(path), "--name", "v", "--out", str(out), "--units",
+                   "mm", "--no-progress", "--no-cache", *extra])
+    return status, out
+
+
+def _tube_mm() -> trimesh.Trimesh:
+    mesh = tube()
+    mesh.apply_scale(1e3)  # 1.5 mm radius, 20 mm long, in mm
+    return mesh
+
+
+@pytest.mark.parametrize("extra, message", [
+    (("--target", "A=500,0,0"), "target A lies 49"),
+    (("--inlet", "1000,0,0"), "inlet .* lies 99"),
+])
+def test_points_far_outside_the_lumen_are_refused_with_their_distance(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: tuple[str, ...],
+        message: str) -> None:
+    status, out = _build(tmp_path, _tube_mm(), *extra)
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert status == 2 and not out.exists()
+    assert re.search(message + r"\d mm outside the lumen", err) and "LPS or RAS" in err
+
+
+def test_a_negative_wall_thickness_is_refused(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as stop:
+        _build(tmp_path, _tube_mm(), "--wall-thickness", "-1")
+    assert stop.value.code == 2 and "--wall-thickness" in capsys.readouterr().err
+    with pytest.raises(WallParamsError, match="thickness"):
+        WallParams(thickness=-1e-3)
+
+
+def test_a_build_below_acceptance_fails_unless_allowed_and_then_warns(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # Checks that cannot pass (an open fraction above 1) stand for a build that closed its
+    # lumen; `sim4endor vessel build` makes its BuildParams when it runs.
+    strict = CheckParams(min_lumen_open=1.5)
+    monkeypatch.setattr(build_module, "BuildParams",
+                        functools.partial(build_module.BuildParams, checks=strict))
+    status, out = _build(tmp_path, _tube_mm())
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and not out.exists()
+    assert "checks below acceptance: lumen open" in err[-1]
+    assert "--allow-below-acceptance" in err[-1]
+    status, out = _build(tmp_path, _tube_mm(), "--allow-below-acceptance")
+    assert status == 0 and out.is_dir()
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        vessels.load(out)
+    assert any("checks below acceptance" in r.getMessage() for r in caplog.records)

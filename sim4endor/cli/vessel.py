@@ -99,6 +99,7 @@ def run_build(args: argparse.Namespace) -> int:
         readme_text=args.readme_text,
         progress=not args.no_progress,
         cache=not args.no_cache,
+        allow_below_acceptance=args.allow_below_acceptance,
     )
     _print(_summary(vessel))
     return 0
@@ -172,7 +173,8 @@ def add_build_parser(subparsers: Any) -> None:
         metavar="NAME=X,Y,Z",
         help="named target in mesh units (repeatable)",
     )
-    parser.add_argument("--wall-thickness", type=float, default=0.8, help="wall thickness (mm)")
+    parser.add_argument("--wall-thickness", type=arg_types.positive_float, default=0.8,
+                        help="wall thickness (mm, > 0)")
     parser.add_argument(
         "--keep-largest",
         action="store_true",
@@ -193,6 +195,12 @@ def add_build_parser(subparsers: Any) -> None:
     parser.add_argument("--readme-text", default="", help="extra README paragraph")
     parser.add_argument("--no-cache", action="store_true", help="rebuild even if cached")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument(
+        "--allow-below-acceptance",
+        action="store_true",
+        help="write the folder even when its lumen-open or wall-closed check is below "
+        "acceptance (for experts; every command that loads it warns)",
+    )
     parser.set_defaults(func=run_build)
 
 

@@ -10,6 +10,7 @@ Example:
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,6 +20,8 @@ from sim4endor import assets
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.centerline import CenterlineGraph
 from sim4endor.vessels.manifest import MANIFEST_FILE, Manifest
+
+logger = logging.getLogger(__name__)
 
 CENTERLINE_FILE = "centerline.json"
 SCENE_FILE = "scene.xml"
@@ -117,8 +120,13 @@ def resolve(name_or_path: str | Path) -> Path:
 def load(name_or_path: str | Path) -> Vessel:
     """Loads a vessel by name (e.g. ``"simplified_phantom"``) or by folder path."""
     root = resolve(name_or_path)
+    manifest = Manifest.load(root)
+    if manifest.below_acceptance:
+        # Built with allow_below_acceptance: every command that loads it says so.
+        logger.warning("vessel %s (%s): %s; the wire may not reach its targets", manifest.name,
+                       root, manifest.below_acceptance)
     return Vessel(
         root=root,
-        manifest=Manifest.load(root),
+        manifest=manifest,
         centerline=CenterlineGraph.load(root / CENTERLINE_FILE),
     )

@@ -44,7 +44,7 @@ from sim4endor.vessels.checks import (
     wall_closed_fraction,
     wall_probes,
 )
-from sim4endor.vessels.manifest import MANIFEST_FILE, Inlet, Manifest
+from sim4endor.vessels.manifest import MANIFEST_FILE, Inlet, Manifest, below_acceptance
 from sim4endor.vessels.meshio import (
     UNIT_SCALE,
     MeshInputError,
@@ -201,6 +201,28 @@ def _close_wall_holes(
         logger.info("%s: filled %d small hole(s) in the wall", source, len(stray))
         return close_openings(prepared, [o.loop for o in stray])
     return prepared
+
+
+#: How far (in lumen radii) a given inlet or target may lie outside the lumen before the build
+#: refuses it: further than that it was given in another frame (LPS against RAS), in other
+#: units, or for another mesh, and snapping it to the nearest node would hide that.
+MAX_POINT_OUTSIDE_RADII = 2.0
+
+
+def _check_near(graph: CenterlineGraph, node: int, point: np.ndarray, what: str, scale: float,
+                name: str) -> None:
+    """Raises :class:`BuildError` if ``point`` (m) lies more than
+    :data:`MAX_POINT_OUTSIDE_RADII` lumen radii outside the lumen at ``node``, its snap."""
+    radius = float(graph.radii[node])
+    outside = float(np.linalg.norm(graph.nodes[node] - point)) - radius
+    if outside > MAX_POINT_OUTSIDE_RADII * radius:
+        nearest = np.round(graph.nodes[node] / scale, 3).tolist()
+        raise BuildError(
+            f"{name}: the {what} lies {outside * 1e3:.3g} mm outside the lumen ("
+            f"{outside / radius:.1f} lumen radii from {nearest}, in input units, where it would "
+            "snap to). Check its units and frame (LPS or RAS), or give a point inside the "
+            "vessel."
+        )
 
 
 def _choose_inlet(graph: CenterlineGraph, inlet: np.ndarray | None) -> tuple[int, str]:
@@ -361,6 +383,7 @@ def build_vessel(
     readme_text: str = "",
     progress: bool = True,
     cache: bool = True,
+    allow_below_acceptance: bool = False,
 ) -> Vessel:
     """Builds a vessel folder from a lumen (blood-pool) surface mesh.
 
@@ -380,6 +403,8 @@ def build_vessel(
         readme_text: Extra README paragraph (provenance, how it was made).
         progress: Show a progress bar (only on a terminal).
         cache: Reuse and fill the build cache.
+        allow_below_acceptance: Write the folder even when its checks are below acceptance
+            (``Manifest.below_acceptance``); every load of it then warns.
 
     Returns:
         The loaded vessel.
@@ -404,6 +429,13 @@ def build_vessel(
     cached = cache_root() / key
     if cache and (cached / MANIFEST_FILE).is_file():
         logger.info("%s: unchanged inputs, using the cached build %s", name, key[:12])
+        failed = Manifest.load(cached).below_acceptance
+        if failed and not allow_below_acceptance:
+            raise BuildError(
+                f"{name}: {failed} (a cached build of the same inputs); nothing was written. "
+                "Remesh the lumen finer, or pass --allow-below-acceptance "
+                "(allow_below_acceptance=True) to keep it."
+            )
         with atomic_directory(out_dir) as staging:
             shutil.copytree(cached, staging, dirs_exist_ok=True)
         return load(out_dir)
@@ -431,6 +463,9 @@ def build_vessel(
     inlet_node, inlet_choice = _choose_inlet(
         centerline, None if inlet is None else np.asarray(inlet) * scale
     )
+    if inlet is not None:
+        _check_near(centerline, inlet_node, np.asarray(inlet, dtype=np.float64) * scale,
+                    "inlet (snapped to the nearest vessel end)", scale, name)
     if inlet_choice.startswith("widest vessel end, but"):
         logger.warning("%s: inlet chosen as the %s", name, inlet_choice)
     target_points = _choose_targets(
@@ -441,6 +476,9 @@ def build_vessel(
     if not target_points:
         raise BuildError(f"{name}: no targets given and the centerline has no second vessel end.")
     graph = _labelled(centerline, inlet_node, target_points)
+    if targets is not None:
+        for label, point in target_points.items():
+            _check_near(graph, graph.labels[label], point, f"target {label}", scale, name)
     _require_connected(graph, name, extracted=given_centerline is None)
     inlet_dir = _terminal_direction(graph, inlet_node)
     inlet_pos = graph.nodes[inlet_node]
@@ -494,15 +532,17 @@ def build_vessel(
             "params": asdict(registration),
             "report": asdict(registration_report),
         }
-    if lumen_open < params.checks.min_lumen_open or wall_closed < params.checks.min_wall_closed:
-        logger.warning(
-            "%s: checks below acceptance: lumen open %.4f (>= %.2f), wall closed %.4f (>= %.2f)",
-            name,
-            lumen_open,
-            params.checks.min_lumen_open,
-            wall_closed,
-            params.checks.min_wall_closed,
-        )
+    failed = below_acceptance(checks, params.checks.min_lumen_open,
+                              params.checks.min_wall_closed)
+    if failed:
+        if not allow_below_acceptance:
+            raise BuildError(
+                f"{name}: {failed}; nothing was written. A coarse or faceted lumen closes or "
+                "opens the wall: remesh it finer (edges of about a fifth of the lumen radius) "
+                "and build again, or pass --allow-below-acceptance (allow_below_acceptance="
+                "True) to keep the folder as it is."
+            )
+        logger.warning("%s: %s; kept as asked (allow_below_acceptance)", name, failed)
     matrix = np.diag([scale, scale, scale, 1.0])
     manifest = Manifest(
         name=name,

@@ -21,6 +21,16 @@ class ManifestError(Sim4EndoRError, ValueError):
     """Raised for a missing or malformed ``manifest.json``; the message names the file."""
 
 
+def below_acceptance(checks: Mapping[str, float], min_lumen_open: float,
+                     min_wall_closed: float) -> str:
+    """A build's ``checks`` below acceptance, as one phrase ("checks below acceptance: lumen
+    open 0.0000 (needs >= 0.99)"), or "" when they all pass (or are missing)."""
+    failed = [f"{label} {checks[key]:.4f} (needs >= {limit:g})" for key, label, limit in (
+        ("lumen_open", "lumen open", min_lumen_open),
+        ("wall_closed", "wall closed", min_wall_closed)) if key in checks and checks[key] < limit]
+    return ("checks below acceptance: " + ", ".join(failed)) if failed else ""
+
+
 @dataclass(frozen=True)
 class Inlet:
     """Where the wire enters the vessel.
@@ -66,6 +76,14 @@ class Manifest:
     checks: Mapping[str, float] = field(default_factory=dict)
     content_hash: str = ""
     schema_version: int = SCHEMA_VERSION
+
+    @property
+    def below_acceptance(self) -> str:
+        """The build's checks below their acceptance thresholds (those recorded with the build,
+        ``build["checks"]``), as one phrase, or "" when they pass or were not recorded."""
+        limits = self.build.get("checks", {}) if isinstance(self.build, Mapping) else {}
+        return below_acceptance(self.checks, limits.get("min_lumen_open", 0.0),
+                                limits.get("min_wall_closed", 0.0))
 
     @property
     def mesh_to_model_matrix(self) -> np.ndarray:

@@ -33,6 +33,7 @@ Faces of the end cap at the inlet get no wall, so a wire can enter a capped mesh
 from __future__ import annotations
 
 import contextlib
+import math
 import multiprocessing
 import multiprocessing.pool
 import signal
@@ -46,11 +47,16 @@ import trimesh
 from numpy.typing import NDArray
 from scipy.spatial import ConvexHull, QhullError
 
+from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.axis import AxisSamples
 from sim4endor.vessels.centerline import CenterlineGraph
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+
+
+class WallParamsError(Sim4EndoRError, ValueError):
+    """Raised for an impossible wall setting; the message names the field."""
 
 
 @dataclass(frozen=True)
@@ -84,6 +90,23 @@ class WallParams:
     coacd_resolution: int = 100
     max_split_depth: int = 12
     workers: int = 2
+
+    def __post_init__(self) -> None:
+        positive = {"thickness": self.thickness, "arc_bin": self.arc_bin,
+                    "coacd_threshold": self.coacd_threshold}
+        for name, value in positive.items():
+            if not (math.isfinite(value) and value > 0):
+                raise WallParamsError(f"WallParams.{name} must be a positive number, got {value}.")
+        if not (math.isfinite(self.intrusion_tolerance) and self.intrusion_tolerance >= 0):
+            raise WallParamsError("WallParams.intrusion_tolerance must be >= 0, got "
+                                  f"{self.intrusion_tolerance}.")
+        counts = {"sectors": (self.sectors, 1), "workers": (self.workers, 1),
+                  "max_split_depth": (self.max_split_depth, 0),
+                  "coacd_mcts_iterations": (self.coacd_mcts_iterations, 1),
+                  "coacd_resolution": (self.coacd_resolution, 1)}
+        for name, (count, least) in counts.items():
+            if count < least:
+                raise WallParamsError(f"WallParams.{name} must be >= {least}, got {count}.")
 
 
 @dataclass(frozen=True, eq=False)
