@@ -536,3 +536,30 @@ def test_gymnasium_refuses_text_actions_too() -> None:
     with pytest.raises(InvalidActionError, match="two numbers"):
         genv.step(["1", "0"])
     genv.close()
+
+
+def test_ctrl_c_wrapped_by_a_library_still_ends_as_interrupted(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    # TorchRL's collector turns a Ctrl-C into a RuntimeError raised while it unwound; MuJoCo's
+    # extension, initialising, into an ImportError raised from it (issue 67).
+    from sim4endor.cli import main, vessel
+
+    def wrapped(args: object) -> int:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise RuntimeError("Converting a tensordict to boolean value is not permitted")  # noqa: B904
+
+    monkeypatch.setattr(vessel, "run_list", wrapped)
+    assert main(["vessel", "list"]) == 130
+    assert capsys.readouterr().err.strip() == "interrupted"
+
+
+def test_caused_by_interrupt_reads_causes_and_contexts() -> None:
+    from sim4endor.errors import caused_by_interrupt
+
+    try:
+        raise ImportError("extension init") from KeyboardInterrupt()
+    except ImportError as error:
+        assert caused_by_interrupt(error)
+    assert not caused_by_interrupt(RuntimeError("a plain failure"))

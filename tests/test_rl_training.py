@@ -15,7 +15,7 @@ from sim4endor.rl import baselines, checkpoint
 from sim4endor.rl.config import ALGORITHMS
 from sim4endor.rl.envs import sim4endor_env
 from sim4endor.rl.runs import evaluate_run, load_agent
-from sim4endor.rl.trainer import DEMO_SEED_OFFSET, RunDirError, train
+from sim4endor.rl.trainer import DEMO_SEED_OFFSET, RunDirError, _Loop, train
 
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
@@ -195,3 +195,43 @@ def test_demonstrations_put_the_experts_episodes_in_the_replay_first(tmp_path: P
     env.close()
     assert torch.equal(replay["action"][:20], expert["action"])
     assert torch.equal(replay["next"]["reward"][:20], expert["next", "reward"])
+
+
+@pytest.mark.parametrize("wrapped", [False, True])
+def test_ctrl_c_saves_a_checkpoint_the_same_command_resumes(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, wrapped: bool) -> None:
+    # A Ctrl-C after the first batch, as it arrives: plain, or turned by a library into another
+    # error raised while the interrupt unwound (TorchRL's collector: a RuntimeError).
+    learn = _Loop._learn
+    calls = []
+
+    def interrupted(self: _Loop, batch: object, state: checkpoint.Progress, frames: int
+                    ) -> checkpoint.Progress:
+        calls.append(frames)
+        if len(calls) == 2:
+            if not wrapped:
+                raise KeyboardInterrupt
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt:
+                # Implicitly chained, as the library does: the interrupt is its __context__.
+                raise RuntimeError(  # noqa: B904
+                    "Converting a tensordict to boolean value is not permitted")
+        return learn(self, batch, state, frames)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(_Loop, "_learn", interrupted)
+    config = tiny_config("ddpg", "collector.total_frames=300")
+    with pytest.raises(KeyboardInterrupt):
+        train(config, tmp_path, make_env=pendulum_env, progress=False)
+    saved = checkpoint.load_progress(tmp_path)
+    assert saved.frames == calls[0] > 0  # the last whole batch, before any periodic checkpoint
+    monkeypatch.setattr(_Loop, "_learn", learn)
+    metrics = train(config, tmp_path, make_env=pendulum_env, progress=False)
+    assert metrics["frames"] == 300
+
+
+def test_out_refuses_a_folder_that_is_not_a_run(tmp_path: Path) -> None:
+    (tmp_path / "notes.txt").write_text("a user's own file")
+    with pytest.raises(RunDirError, match=r"not empty and not a run folder.*notes\.txt"):
+        train(tiny_config("ddpg"), tmp_path, make_env=pendulum_env, progress=False)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]  # nothing added

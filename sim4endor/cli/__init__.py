@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from sim4endor import _gl
-from sim4endor.errors import Sim4EndoRError
+from sim4endor.errors import Sim4EndoRError, caused_by_interrupt
 
 # Subcommand modules, imported lazily so `sim4endor --help` stays fast.
 _SUBCOMMAND_MODULES: tuple[str, ...] = (
@@ -66,10 +66,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return _interrupted()
-    except ImportError as exc:
-        # Ctrl-C while a compiled extension initialises (MuJoCo's, first imported inside the
-        # command) comes out of the import as an ImportError raised from the interrupt.
-        if isinstance(exc.__cause__, KeyboardInterrupt):
+    except Exception as exc:
+        # Ctrl-C deep in a library can come out as another exception (caused_by_interrupt).
+        if caused_by_interrupt(exc):
             return _interrupted()
         raise
 

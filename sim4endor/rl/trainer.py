@@ -50,7 +50,7 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 
 from sim4endor import _json as strict_json
 from sim4endor._atomic import atomic_directory, atomic_write_text
-from sim4endor.errors import Sim4EndoRError
+from sim4endor.errors import Sim4EndoRError, caused_by_interrupt
 from sim4endor.rl import baselines, checkpoint, ray_backend
 from sim4endor.rl.algorithms import Agent, build_agent, learner_device
 from sim4endor.rl.config import TrainConfig, load_config, save_config, to_dict
@@ -200,7 +200,18 @@ def train_from_file(path: Path, run_dir: Path, overrides: tuple[str, ...] = ()) 
 
 
 def _check_resumable(run_dir: Path, config: TrainConfig) -> None:
+    """Refuses ``run_dir`` unless it is new, empty, or a run of ``config`` to resume: a run's
+    files would otherwise land beside a user's own."""
     saved_path = run_dir / CONFIG_FILE
+    if run_dir.is_dir() and any(run_dir.iterdir()) and not saved_path.is_file():
+        held = sorted(p.name for p in run_dir.iterdir())
+        shown = ", ".join(held[:3]) + (f" and {len(held) - 3} more" if len(held) > 3 else "")
+        raise RunDirError(
+            f"{run_dir} is not empty and not a run folder (it holds {shown}); choose a new or "
+            "empty --out folder."
+        )
+    if run_dir.exists() and not run_dir.is_dir():
+        raise RunDirError(f"{run_dir} exists and is not a folder; choose another --out folder.")
     if not checkpoint.has_checkpoint(run_dir) or not saved_path.is_file():
         return
     saved = load_config(saved_path)
@@ -357,6 +368,7 @@ class _Loop:
             desc=f"{cfg.algorithm} {cfg.env.domain}/{cfg.env.task}",
         )
         # Log lines (each periodic evaluation) go through the bar, so they do not tear it.
+        interrupted = False
         try:
             with logging_redirect_tqdm(tqdm_class=tqdm):
                 self.clock = time.monotonic()
@@ -369,12 +381,24 @@ class _Loop:
                     bar.update(batch.numel())
                     bar.set_postfix(stats)
                     self._periodic(state, frames - batch.numel())
+        except Exception as exc:
+            if not caused_by_interrupt(exc):
+                raise
+            interrupted = True
+        except KeyboardInterrupt:
+            interrupted = True
         finally:
             collector.shutdown()
             # A multi-process collector's shutdown hands its workers' threads to this process.
             torch.set_num_threads(cfg.torch_threads)
             bar.close()
+        # Also on Ctrl-C: the progress of the last whole batch, so the run resumes from there
+        # rather than from its last periodic checkpoint (or from nothing before the first).
         checkpoint.save_checkpoint(self.run_dir, self.agent, state, self.replay)
+        if interrupted:
+            _LOG.warning("interrupted at %d frames; the same command resumes the run",
+                         state.frames)
+            raise KeyboardInterrupt
         return state
 
     def _learn(
