@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -52,3 +54,25 @@ def test_onnx_policy_matches_the_actor(tmp_path: Path) -> None:
     expected = _reference(run_dir, observation).numpy()
     assert action.shape == expected.shape
     assert abs(action - expected).max() < 1e-5
+
+
+ROBOT_SCRIPT = Path(__file__).resolve().parents[1] / "experiments/export/run_onnx_policy.py"
+
+
+def _robot_script(args: list[str], cwd: Path, block_onnxruntime: bool
+                  ) -> subprocess.CompletedProcess[str]:
+    """Runs the robot-side example from ``cwd`` (not the repository), optionally as on a
+    machine without onnxruntime."""
+    block = "sys.modules['onnxruntime'] = None; " if block_onnxruntime else ""
+    code = (f"import runpy, sys; {block}sys.argv = [{str(ROBOT_SCRIPT)!r}, *{args!r}]; "
+            f"runpy.run_path({str(ROBOT_SCRIPT)!r}, run_name='__main__')")
+    return subprocess.run([sys.executable, "-c", code], cwd=cwd, capture_output=True,
+                          text=True, check=False)
+
+
+def test_the_robot_example_runs_from_anywhere_and_names_what_is_missing(tmp_path: Path) -> None:
+    done = _robot_script([str(tmp_path / "export")], tmp_path, block_onnxruntime=True)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert "needs onnxruntime: pip install onnxruntime" in done.stderr
+    done = _robot_script([str(tmp_path / "export")], tmp_path, block_onnxruntime=False)
+    assert done.returncode == 2 and "policy.json" in done.stderr and "--onnx" in done.stderr

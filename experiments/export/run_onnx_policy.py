@@ -16,7 +16,6 @@ import json
 from pathlib import Path
 
 import numpy as np
-import onnxruntime
 
 
 def main() -> None:
@@ -24,6 +23,16 @@ def main() -> None:
     parser.add_argument("export_dir", type=Path, help="folder with policy.onnx and policy.json")
     parser.add_argument("--observation", type=float, nargs="+", help="observation values (SI)")
     args = parser.parse_args()
+    try:
+        import onnxruntime
+    except ImportError:
+        parser.exit(2, "run_onnx_policy.py needs onnxruntime: pip install onnxruntime (or "
+                       "'sim4endor[onnx]'); nothing else of sim4endor is needed here.\n")
+    files = [args.export_dir / name for name in ("policy.json", "policy.onnx")]
+    missing = [str(path) for path in files if not path.is_file()]
+    if missing:
+        parser.error(f"{', '.join(missing)} not found: export the run with "
+                     "'sim4endor export RUN --out EXPORT_DIR --onnx' first")
     contract = json.loads((args.export_dir / "policy.json").read_text())
     size = contract["observation"]["shape"][-1]
     values = args.observation or [0.0] * size
