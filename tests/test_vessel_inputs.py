@@ -144,18 +144,6 @@ def test_the_units_error_comes_before_any_heavy_work(monkeypatch: pytest.MonkeyP
         prepare_lumen(metres, units="mm")
 
 
-def test_a_coarse_triangulation_is_remeshed_before_the_build() -> None:
-    # A capped 2 mm cylinder of 60 mm triangles: the ray-cast radius of its long faces reads
-    # 16 mm, and its wall pieces closed the lumen (issue 67).
-    coarse = trimesh.creation.cylinder(radius=2.0, height=60.0)
-    prepared = prepare_lumen(coarse, units="mm")
-    assert prepared.report.remeshed_faces > 10 * len(coarse.faces)
-    assert prepared.radius_estimate == pytest.approx(2e-3, rel=0.05)
-    assert prepared.mesh.edges_unique_length.max() <= 0.5 * prepared.radius_estimate + 1e-9
-    fine = prepare_lumen(tube(), units="m")  # already fine: left as it is
-    assert fine.report.remeshed_faces == 0
-
-
 def _build(tmp_path: Path, mesh: trimesh.Trimesh, *extra: str) -> tuple[int, Path]:
     path = tmp_path / "lumen.stl"
     mesh.export(path)

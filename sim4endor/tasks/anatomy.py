@@ -209,10 +209,12 @@ def cached_build(tree: GeneratedAnatomy, name: str, cache_dir: Path, config: obj
     from sim4endor.vessels.build import build_vessel
 
     def build(out_dir: Path) -> None:
+        # A pool draws its trees during training: one whose checks fall below acceptance is
+        # kept, and every load of it warns, rather than ending the run.
         build_vessel(tree.lumen, name=name, out_dir=out_dir, units="m",
                      centerline=tree.centerline, inlet=tree.inlet_position,
                      targets=tree.targets, source=tree.description, params=params,
-                     progress=False)
+                     progress=False, allow_below_acceptance=True)
 
     return build_once(cache_folder(tree, name, cache_dir, config, params), build)
 

@@ -7,11 +7,7 @@ Documented repairs (each is counted in :class:`RepairReport` and logged):
 * small holes in the side wall (a boundary loop whose perimeter is below
   ``max_hole_perimeter`` lumen radii and whose adjacent faces lie in the loop's plane) are closed
   with a fan around the loop centroid;
-* with ``keep_largest=True`` every connected component but the largest is dropped;
-* a coarse triangulation (an edge longer than :data:`COARSE_EDGE` lumen radii, as a CAD
-  cylinder's end-to-end triangles) is subdivided until no edge is longer than
-  :data:`REMESH_EDGE` lumen radii: long thin triangles make wall pieces whose hulls fill the
-  lumen (a capped 2 mm cylinder of 60 mm triangles built with its lumen closed).
+* with ``keep_largest=True`` every connected component but the largest is dropped.
 
 Everything else that makes a mesh unusable raises :class:`MeshInputError` naming the file and the
 fix: an empty or unreadable file, large holes, several components (without ``keep_largest``), or
@@ -41,10 +37,6 @@ SUPPORTED_SUFFIXES = (".stl", ".obj", ".ply", ".off")
 UNIT_SCALE: dict[str, float] = {"um": 1e-6, "mm": 1e-3, "m": 1.0}
 #: Plausible lumen radii (m) of vessels a guidewire navigates: small coronary to large aorta.
 PLAUSIBLE_RADIUS = (0.2e-3, 30e-3)
-#: A mesh with an edge longer than this many lumen radii is remeshed (see the module doc).
-COARSE_EDGE = 3.0
-#: The longest edge (lumen radii) a coarse mesh is subdivided to.
-REMESH_EDGE = 0.5
 #: Plausible sizes (m, bounding-box diagonal) of a vessel mesh: from a few millimetres of one
 #: narrow vessel to a whole body's arterial tree. Checked before any heavy work, so a mesh in
 #: the wrong units fails at once; the radius check after the repairs is the finer one.
@@ -65,7 +57,6 @@ class RepairReport:
         filled_holes: Small side-wall holes closed.
         dropped_components: Face counts of components dropped by ``keep_largest``.
         open_ends: Number of boundary loops kept open as vessel ends.
-        remeshed_faces: Faces after subdividing a coarse triangulation (0: not remeshed).
     """
 
     merged_vertices: int = 0
@@ -73,7 +64,6 @@ class RepairReport:
     filled_holes: int = 0
     dropped_components: tuple[int, ...] = ()
     open_ends: int = 0
-    remeshed_faces: int = 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -319,22 +309,6 @@ def prepare_lumen(
             f"{PLAUSIBLE_RADIUS[1] * 1e3:g} mm). {_units_hint(radius / scale)}"
         )
 
-    remeshed, before = 0, len(work.faces)
-    # Rays cast from a coarse mesh's long faces misjudge the radius (a capped 2 mm cylinder of
-    # 60 mm triangles read 16 mm), so the radius is estimated again after each subdivision.
-    for _ in range(4):
-        if float(work.edges_unique_length.max()) <= COARSE_EDGE * radius:
-            break
-        vertices, faces = trimesh.remesh.subdivide_to_size(
-            work.vertices, work.faces, max_edge=REMESH_EDGE * radius)
-        work = trimesh.Trimesh(vertices, faces, process=False)
-        work.merge_vertices()
-        remeshed = len(work.faces)
-        radius = estimate_radius(work)
-    if remeshed:
-        logger.info("%s: remeshed a coarse triangulation to edges of at most %g lumen radii: %d "
-                    "faces instead of %d", source, REMESH_EDGE, remeshed, before)
-
     filled = 0
     end_loops: list[NDArray[np.int64]] = []
     for loop in boundary_loops(work):
@@ -364,7 +338,6 @@ def prepare_lumen(
         filled_holes=filled,
         dropped_components=dropped,
         open_ends=len(end_loops),
-        remeshed_faces=remeshed,
     )
     return PreparedLumen(
         mesh=work, scale=scale, radius_estimate=radius, end_loops=end_loops, report=report
