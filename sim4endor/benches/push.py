@@ -78,7 +78,6 @@ def push_test(
     With ``stop_push_force`` the run ends (``stopped``) after the first control step whose
     driver push exceeds it: the navigation task's ``push_force`` failure, checked the same way.
     """
-
     physics = push_physics(vessel, wire, force_limit, timestep)
     tolerance = wire.radius if escape_tolerance is None else escape_tolerance
     substeps = max(1, round(control_period / physics.model.opt.timestep))

@@ -146,7 +146,6 @@ def held_tips(wire: GuidewireConfig, holds: Sequence[float],
     A position is non-finite once the simulation is unhealthy (non-finite state or a MuJoCo
     warning), so a difference with it never passes for a small shift.
     """
-
     physics = bent_tube_physics(wire, timestep)
     drive_to(physics, INSERTION, 0.0)
     tips = []
@@ -190,7 +189,6 @@ def roll_test(
     whole torque once that segment rolls at ``speed``, in proportion below it. (A steeper,
     Coulomb-like brake, applied explicitly each step, rings on the light tip segments.)
     """
-
     physics = bent_tube_physics(wire, timestep)
     shape_start = physics.shape_start_index()
     gripped = int(physics.wire_body_ids()[shape_start - 1])

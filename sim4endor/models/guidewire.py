@@ -138,9 +138,10 @@ class GuidewireConfig:
             docs/guidewire.md, "Convergence", measures both.
         contact_margin: Distance (m) from a wall at which the wire's contacts start to act:
             MuJoCo's geom margin, so the wire collides as if ``2 × contact_margin`` wider.
-            0 collides at the jacket's true radius, as the catalogue's presets do; the
-            default 0.1 mm is the ``paper`` preset's, bit for bit the published model
-            (docs/guidewire.md, "Contact at the true radius").
+            Every preset keeps the default 0.1 mm (the ``paper`` preset bit for bit the
+            published model); 0 collides at the jacket's true radius, which overlapped the
+            hulls by up to 0.8 wire radii at the driver's push (docs/guidewire.md, "Contact
+            at the true radius").
         core_profile: Optional tapered core: ``((s, d), ...)`` pairs of distance from the
             distal tip ``s`` (m, strictly increasing, starting at 0) and core diameter ``d``
             (m), linear in between and constant beyond the last pair. ``None`` (default)

@@ -39,8 +39,6 @@ from sim4endor.vessels.centerline import INLET_LABEL, Projection
 
 FloatArray = NDArray[np.float64]
 
-#: Centerline label of the inlet node, which every built vessel has.
-
 #: Failure reasons, in the order they are checked.
 FAILURES: tuple[str, ...] = (
     "instability",

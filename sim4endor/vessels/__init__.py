@@ -121,10 +121,11 @@ def load(name_or_path: str | Path) -> Vessel:
     """Loads a vessel by name (e.g. ``"simplified_phantom"``) or by folder path."""
     root = resolve(name_or_path)
     manifest = Manifest.load(root)
-    if manifest.below_acceptance:
+    failed = manifest.below_acceptance
+    if failed:
         # Built with allow_below_acceptance: every command that loads it says so.
         logger.warning("vessel %s (%s): %s; the wire may not reach its targets", manifest.name,
-                       root, manifest.below_acceptance)
+                       root, failed)
     return Vessel(
         root=root,
         manifest=manifest,

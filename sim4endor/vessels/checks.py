@@ -27,6 +27,7 @@ from scipy.spatial import cKDTree
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.axis import AxisSamples, sample_axis
 from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.manifest import below_acceptance
 from sim4endor.vessels.meshio import boundary_loops, loop_perimeter
 from sim4endor.vessels.walls import Hull, convex_hull, wall_thickness
 
@@ -249,10 +250,9 @@ def check_folder(vessel: Vessel, params: CheckParams | None = None) -> dict[str,
     mujoco.mj_forward(model, data)
     compiles = int(sum(w.number for w in data.warning)) == 0
     stray = stray_openings(np.asarray(lumen.vertices), boundary_loops(lumen), vessel.centerline)
-    passed = (
-        lumen_open >= params.min_lumen_open and wall_closed >= params.min_wall_closed
-        and compiles and not stray
-    )
+    accepted = not below_acceptance({"lumen_open": lumen_open, "wall_closed": wall_closed},
+                                    params.min_lumen_open, params.min_wall_closed)
+    passed = accepted and compiles and not stray
     return {
         "lumen_open": lumen_open,
         "wall_closed": wall_closed,

@@ -81,7 +81,7 @@ class Manifest:
     def below_acceptance(self) -> str:
         """The build's checks below their acceptance thresholds (those recorded with the build,
         ``build["checks"]``), as one phrase, or "" when they pass or were not recorded."""
-        limits = self.build.get("checks", {}) if isinstance(self.build, Mapping) else {}
+        limits = self.build.get("checks", {})
         return below_acceptance(self.checks, limits.get("min_lumen_open", 0.0),
                                 limits.get("min_wall_closed", 0.0))
 
