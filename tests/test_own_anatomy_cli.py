@@ -65,7 +65,7 @@ def test_mesh_to_exported_policy_from_the_command_line(tmp_path: Path) -> None:
             words[0] = sys.executable
         outputs.append(run(words, tmp_path).stdout)
     build, reach, expert, train, evaluate, sac, export, robot = outputs
-    assert "lumen open 0.99" in build and "lumen open 0.98" not in build
+    assert float(re.search(r"lumen open ([0-9.]+)", build)[1]) >= 0.99
     assert re.search(r"inlet \([-0-9., ]+\) mm, targets \['T1', 'T2'\]", build)
     assert re.search(r"^T1 +2/2 successes", reach, re.M), reach
     assert re.search(r"^all +\d/4 successes", reach, re.M), reach

@@ -194,11 +194,13 @@ def test_a_model_mujoco_refuses_is_a_named_build_error_and_writes_nothing(
     the vessel, the hull and MuJoCo's reason, not MuJoCo's traceback, and leaves no folder."""
     write_meshes = build_module.write_meshes
 
-    def with_a_three_vertex_hull(folder: Path, hulls: list, lumen: trimesh.Trimesh) -> None:
-        write_meshes(folder, hulls, lumen)
+    def with_a_three_vertex_hull(folder: Path, hulls: list, lumen: trimesh.Trimesh,
+                                 display: trimesh.Trimesh | None) -> int:
+        parts = write_meshes(folder, hulls, lumen, display)
         three = trimesh.Trimesh([[0, 0, 0], [1e-3, 0, 0], [0, 1e-3, 0], [0, 1e-3, 0]],
                                 [[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]], process=False)
         three.export(folder / HULL_DIR / f"{hull_mesh_name(0)}.stl", file_type="stl")
+        return parts
 
     monkeypatch.setattr(build_module, "write_meshes", with_a_three_vertex_hull)
     tube, graph = straight_tube()

@@ -26,6 +26,7 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from importlib import metadata
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import trimesh
@@ -55,6 +56,7 @@ from sim4endor.vessels.meshio import (
     prepare_lumen,
 )
 from sim4endor.vessels.mjcf_writer import (
+    DISPLAY_DIR,
     HULL_DIR,
     LUMEN_FILE,
     write_meshes,
@@ -62,6 +64,7 @@ from sim4endor.vessels.mjcf_writer import (
     write_vessel_mjcf,
 )
 from sim4endor.vessels.register import RegistrationParams, register_centerline
+from sim4endor.vessels.remesh import RemeshParams
 from sim4endor.vessels.skeleton import SkeletonParams, extract_centerline
 from sim4endor.vessels.walls import (
     Hull,
@@ -91,6 +94,8 @@ class BuildParams:
         skeleton: Centerline extraction settings (used when no centerline is given).
         keep_largest: Keep only the largest connected component of the input mesh.
         max_hole_perimeter: Side-wall holes below this many lumen radii around are filled.
+        resolution: When the lumen is decimated or its long edges split before the wall is
+            built (:mod:`.remesh`).
     """
 
     wall: WallParams = field(default_factory=WallParams)
@@ -98,6 +103,7 @@ class BuildParams:
     skeleton: SkeletonParams = field(default_factory=SkeletonParams)
     keep_largest: bool = False
     max_hole_perimeter: float = 3.0
+    resolution: RemeshParams = field(default_factory=RemeshParams)
 
 
 def cache_root() -> Path:
@@ -324,11 +330,11 @@ def check_output_folder(out_dir: Path) -> None:
             f"{out_dir} is not empty and not a vessel folder (it holds {_listing(entries)}); "
             "choose a new or empty output folder. A build replaces its folder as a whole."
         ) from None
-    foreign = [e for e in entries if e not in (*_BUILD_FILES, mjcf, HULL_DIR)]
-    hulls = out_dir / HULL_DIR
-    if hulls.is_dir():
-        foreign += [f"{HULL_DIR}/{p.name}" for p in sorted(hulls.iterdir())
-                    if not (p.is_file() and p.name.startswith("hull_") and p.suffix == ".stl")]
+    foreign = [e for e in entries if e not in (*_BUILD_FILES, mjcf, HULL_DIR, DISPLAY_DIR)]
+    for folder, stem in ((HULL_DIR, "hull_"), (DISPLAY_DIR, "part_")):
+        if (out_dir / folder).is_dir():
+            foreign += [f"{folder}/{p.name}" for p in sorted((out_dir / folder).iterdir())
+                        if not (p.is_file() and p.name.startswith(stem) and p.suffix == ".stl")]
     if foreign:
         raise BuildError(
             f"{out_dir} is a vessel folder with files a build did not write "
@@ -363,8 +369,21 @@ def _readme(name: str, source: str, units: str, text: str, manifest: Manifest) -
         f"- Checks: lumen open {checks['lumen_open']:.4f}, wall closed "
         f"{checks['wall_closed']:.4f}, build time {checks['build_time_s']:.1f} s.\n"
         "- Files: manifest.json, the vessel MJCF, scene.xml, centerline.json, hulls/, "
-        "lumen.stl.\n"
+        f"lumen.stl{_lumen_files(manifest.build['repairs'])}.\n"
     )
+
+
+def _lumen_files(repairs: Mapping[str, Any]) -> str:
+    """What the README says of the lumen files when the build remeshed the lumen."""
+    said = ""
+    if repairs.get("decimated_from"):
+        said += (f" (the lumen the wall was built from, decimated from "
+                 f"{repairs['decimated_from']:,} faces), {DISPLAY_DIR}/ (the full lumen, for "
+                 "display, in parts under MuJoCo's 200,000 faces per mesh)")
+    if repairs.get("subdivided_from"):
+        said += (f"; the lumen's faces with long edges were subdivided (from "
+                 f"{repairs['subdivided_from']:,} faces)")
+    return said
 
 
 def build_vessel(
@@ -447,6 +466,7 @@ def build_vessel(
         source=source or name,
         keep_largest=params.keep_largest,
         max_hole_perimeter=params.max_hole_perimeter,
+        resolution=params.resolution,
     )
     scale = UNIT_SCALE[units]
     given_centerline, registration_report = centerline, None
@@ -558,10 +578,11 @@ def build_vessel(
         content_hash=key,
     )
     with atomic_directory(out_dir) as staging:
-        write_meshes(staging, hulls, mesh)
+        part_count = write_meshes(staging, hulls, mesh, prepared.display)
         try:
             write_vessel_mjcf(
-                staging, name=name, hull_count=len(hulls), inlet=inlet_pos, targets=target_points
+                staging, name=name, hull_count=len(hulls), inlet=inlet_pos,
+                targets=target_points, display_part_count=part_count,
             )
         except ValueError as exc:  # MuJoCo's compiler, on a mesh the build wrote
             reason = "; ".join(str(exc).strip().removeprefix("Error: ").splitlines())

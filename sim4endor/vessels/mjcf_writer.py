@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 
 from sim4endor import assets
+from sim4endor.vessels.remesh import display_parts
 from sim4endor.vessels.walls import Hull
 
 DEFAULTS_FILE = "vessel_defaults.xml"
@@ -24,6 +25,9 @@ VISUAL_CLASS = "vessel_visual"
 HULL_DIR = "hulls"
 LUMEN_FILE = "lumen.stl"
 LUMEN_GEOM = "lumen"
+#: Where a lumen decimated for the wall keeps its full-resolution surface, for display, in
+#: parts under MuJoCo's faces-per-mesh limit (``part_000.stl``...).
+DISPLAY_DIR = "lumen_full"
 INLET_SITE = "inlet"
 TARGET_SITE_PREFIX = "target_"
 
@@ -43,12 +47,31 @@ def target_site_name(target: str) -> str:
     return f"{TARGET_SITE_PREFIX}{target}"
 
 
-def write_meshes(folder: Path, hulls: Sequence[Hull], lumen: trimesh.Trimesh) -> None:
-    """Writes ``hulls/hull_XXX.stl`` (binary) and the lumen visual mesh into ``folder``."""
+def display_part_file(index: int) -> str:
+    """Returns the path, in a vessel folder, of part ``index`` of the full-resolution lumen."""
+    return f"{DISPLAY_DIR}/part_{index:03d}.stl"
+
+
+def write_meshes(folder: Path, hulls: Sequence[Hull], lumen: trimesh.Trimesh,
+                 display: trimesh.Trimesh | None = None) -> int:
+    """Writes ``hulls/hull_XXX.stl`` (binary), the lumen the wall was built from and, when it
+    was decimated from one or is over MuJoCo's faces-per-mesh limit, the lumen to display
+    (``display``, else ``lumen``) in parts (:data:`DISPLAY_DIR`).
+
+    Returns:
+        The number of display parts written (0: the lumen itself is displayed).
+    """
     (folder / HULL_DIR).mkdir(parents=True, exist_ok=True)
     for k, hull in enumerate(hulls):
         hull.to_trimesh().export(folder / HULL_DIR / f"{hull_mesh_name(k)}.stl", file_type="stl")
     lumen.export(folder / LUMEN_FILE, file_type="stl")
+    parts = display_parts(lumen if display is None else display)
+    if display is None and len(parts) == 1:
+        return 0
+    (folder / DISPLAY_DIR).mkdir()
+    for k, part in enumerate(parts):
+        part.export(folder / display_part_file(k), file_type="stl")
+    return len(parts)
 
 
 def write_vessel_mjcf(
@@ -58,8 +81,13 @@ def write_vessel_mjcf(
     hull_count: int,
     inlet: np.ndarray,
     targets: Mapping[str, np.ndarray],
+    display_part_count: int = 0,
 ) -> Path:
-    """Writes ``<name>.xml`` into ``folder`` (whose meshes must exist) and returns its path."""
+    """Writes ``<name>.xml`` into ``folder`` (whose meshes must exist) and returns its path.
+
+    The lumen is displayed from :data:`LUMEN_FILE` (geom ``lumen``) or
+    from its ``display_part_count`` full-resolution parts (geoms ``lumen_000``...).
+    """
     spec = mujoco.MjSpec.from_file(str(assets.mjcf_path(DEFAULTS_FILE)))
     spec.modelname = name
     spec.modelfiledir = str(folder)
@@ -72,8 +100,11 @@ def write_vessel_mjcf(
             default=wall, name=hull_mesh_name(k), file=f"{HULL_DIR}/{hull_mesh_name(k)}.stl"
         )
         body.add_geom(default=wall, name=wall_geom_name(k), meshname=hull_mesh_name(k))
-    spec.add_mesh(default=visual, name=LUMEN_GEOM, file=LUMEN_FILE)
-    body.add_geom(default=visual, name=LUMEN_GEOM, meshname=LUMEN_GEOM)
+    shown = ([(LUMEN_GEOM, LUMEN_FILE)] if display_part_count == 0 else
+             [(f"{LUMEN_GEOM}_{k:03d}", display_part_file(k)) for k in range(display_part_count)])
+    for geom, file in shown:
+        spec.add_mesh(default=visual, name=geom, file=file)
+        body.add_geom(default=visual, name=geom, meshname=geom)
     body.add_site(
         name=INLET_SITE,
         pos=np.asarray(inlet, dtype=float),
