@@ -46,8 +46,9 @@ tip-frame entries that do not change when the anatomy moves
 (:mod:`sim4endor.models.wires`: ``paper``, ``workhorse``, ``intermediate``, ``stiff``); a
 :class:`~sim4endor.models.guidewire.GuidewireConfig` or a mapping
 (``{"preset": "workhorse", "tip": "J"}``) also works. Defaults: ``paper`` on the phantoms and
-``vessel`` folders, ``workhorse`` on ``coronary`` and ``workhorse`` with its tip shaped 3 mm at
-75° on ``random_coronary``.
+``vessel`` folders, ``workhorse`` with a 2 mm/45° tip on ``coronary`` and with its tip shaped
+3 mm at 75° on ``random_coronary``. The catalogue shapes the ``workhorse`` 3 mm at 75° with a
+50° curve 5 mm back, for coronary-calibre vessel folders.
 
 **Action**: shape (2,), bounded [-1, 1]: ``[Δd / max_insertion_step, Δθ / max_rotation_step]``
 per control step; defaults 1.5 mm and 9° at 20 Hz (``control_timestep`` 0.05 s), i.e. at most
@@ -283,7 +284,7 @@ def _environment_kwargs(given: Mapping[str, Any]) -> dict[str, Any]:
 
 def default_wire(domain_name: str) -> str | Mapping[str, Any]:
     """The wire a domain's tasks use when ``task_kwargs`` names none, as ``wire`` takes it:
-    ``workhorse`` on ``coronary``, the workhorse shaped 3 mm at 75° on ``random_coronary``
+    the workhorse shaped 2 mm at 45° on ``coronary``, 3 mm at 75° on ``random_coronary``
     and ``paper`` elsewhere (``sim4endor.models.wires.resolve`` turns it into a config)."""
     if domain_name == "coronary":
         return coronary.DEFAULT_WIRE

@@ -261,9 +261,9 @@ def test_a_tip_shaped_wider_than_the_catheter_starts_straight_and_takes_its_shap
 def test_the_coronary_scene_keeps_tips_shaped_for_the_proximal_arteries_and_narrows_wider_ones(
         ) -> None:
     scene = coronary.scene_for(None)
-    workhorse = wires.preset("workhorse")
+    workhorse = wires.resolve(coronary.DEFAULT_WIRE)
     assert scene.wire.core_profile == workhorse.core_profile
-    assert scene.wire.tip_angle == workhorse.tip_angle  # 2 mm, 45 degrees: as shaped
+    assert scene.wire.tip_angle == workhorse.tip_angle == math.radians(45.0)  # as shaped
     assert scene.driver.max_insertion == coronary.MAX_INSERTION
     room = SOFT_TIP_FILL * (CoronaryArteriesConfig().catheter_radius - workhorse.radius)
     paper = wires.preset("paper")  # 5 mm, 35 degrees: 1.48 mm wide, within the 7F bore

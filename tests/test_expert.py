@@ -77,8 +77,8 @@ def test_expert_actions_stay_in_the_action_box_and_reset_forgets_the_episode() -
 
 def test_the_expert_reads_the_tip_of_the_wire_in_the_physics() -> None:
     """The body axis is measured behind the wire's own pre-bent tip: 5 mm for the paper
-    wire (as ExpertConfig's old fixed default), 2 mm for the workhorse."""
-    for wire, tip in (("paper", 0.005), ("workhorse", 0.002)):
+    wire (as ExpertConfig's old fixed default), 2 mm for the workhorse shaped 2 mm at 45°."""
+    for wire, tip in (("paper", 0.005), ({"preset": "workhorse", "tip": "2,45"}, 0.002)):
         env = suite.load("simplified_phantom", "task_a", {"random": 0, "wire": wire})
         env.reset()
         points = env.physics.wire_points()

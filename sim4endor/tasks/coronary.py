@@ -24,7 +24,8 @@ import dataclasses
 import functools
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Literal
+from types import MappingProxyType
+from typing import Any, Literal
 
 from sim4endor.models import wires
 from sim4endor.models.scene import (
@@ -40,8 +41,12 @@ from sim4endor.tasks.config import TaskConfigError, TerminationConfig
 
 #: Pool members when ``task_kwargs`` does not say.
 DEFAULT_POOL_SIZE = 8
-#: The wire when ``task_kwargs`` does not say.
-DEFAULT_WIRE = "workhorse"
+#: The wire when ``task_kwargs`` does not say: the ``workhorse`` with the 2 mm/45° tip it had in
+#: the catalogue until 2026-12-04, with which every figure of this domain was measured (the
+#: catalogue's shape now is the one for user-built coronary-calibre folders).
+DEFAULT_WIRE: Mapping[str, Any] = MappingProxyType(
+    {"preset": "workhorse", "tip": wires.TipShape.degrees(2.0, 45.0)}
+)
 #: Episode limits of the domain. 40 s, not the phantoms' 20 s: the deepest targets lie 156 mm
 #: in, 5 s at the driver's top speed, and each of up to four bifurcations on the way may take a
 #: roll and a retreat; measured on tuning trees 0-19 with the expert, 3 of 76 targets were
@@ -83,7 +88,7 @@ def scene_for(base: SceneConfig | None) -> SceneConfig:
     generator draws."""
     from sim4endor.vessels.generators.coronary_arteries import CoronaryArteriesConfig
 
-    scene = with_travel(base or SceneConfig(wire=wires.preset(DEFAULT_WIRE)), MAX_INSERTION)
+    scene = with_travel(base or SceneConfig(wire=wires.resolve(DEFAULT_WIRE)), MAX_INSERTION)
     generator = CoronaryArteriesConfig()
     wire = fit_tip(scene.wire, generator.catheter_radius, SOFT_TIP_FILL,
                    where="a coronary tree's guide catheter")
