@@ -219,3 +219,42 @@ def test_the_expert_takes_over_where_the_policy_is_stuck_and_finetuning_learns_i
     assert (new / script.RECORD_FILE).is_file()
     with pytest.raises(FileExistsError):
         script.finetune(run, new, [tmp_path / "data.npz"], steps=1, batch=8, lr=3e-3, seed=0)
+
+
+def test_expert_dagger_labels_every_step_and_cloning_fits_the_labels(
+        phantom: str, tmp_path: Path) -> None:
+    """experiments/generalist/expert_dagger.py: with no actor the plain expert drives and its
+    labels are the actions taken; with an actor the actor drives and the expert still labels
+    every step; cloning brings the actor's deterministic action closer to the labels, and a
+    round folder loads as a run."""
+    import numpy as np
+    import torch
+
+    from sim4endor.rl.algorithms import build_agent
+    from sim4endor.rl.config import apply_overrides, default_config
+    from sim4endor.rl.envs import sim4endor_env
+    from sim4endor.rl.runs import load_agent
+
+    script = load_script("experiments/generalist/expert_dagger.py")
+    config = apply_overrides(default_config("sac"), [f"env.domain={phantom}",
+                                                     "network.hidden_sizes=[16]"])
+    env = sim4endor_env(config.env, 0)
+    try:
+        agent = build_agent(config, env.observation_spec, env.action_spec)
+        expert, _ = script.collect(env, None, episodes=1, max_steps=12, desc="expert")
+        driven, _ = script.collect(env, agent.env_actor, episodes=1, max_steps=12,
+                                   desc="policy")
+    finally:
+        env.close()
+    assert len(expert["label"]) == len(driven["label"]) == 12
+    assert expert["label"][:, 0].max() > 0.0  # the expert pushes
+    assert np.isfinite(driven["label"]).all()
+    data = [expert, driven]
+    before = script.clone(agent, data, steps=1, batch=24, lr=0.0, seed=0)
+    after = script.clone(agent, data, steps=300, batch=24, lr=3e-3, seed=0)
+    assert after < 0.5 * before
+    script.save_round(tmp_path / "round_0", config, agent)
+    loaded, tuned = load_agent(tmp_path / "round_0")
+    assert loaded.env == config.env
+    for mine, theirs in zip(agent.actor.parameters(), tuned.actor.parameters(), strict=True):
+        torch.testing.assert_close(mine, theirs)
