@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import cast
 
 import fast_simplification
 import numpy as np
@@ -118,11 +119,5 @@ def display_parts(mesh: trimesh.Trimesh, max_faces: int = MUJOCO_MAX_FACES - 1
     centres = mesh.triangles_center
     order = np.argsort(centres[:, int(np.argmax(np.ptp(centres, axis=0)))], kind="stable")
     pieces = int(np.ceil(len(order) / max_faces))
-    return [trimesh.Trimesh(*_compact(mesh.vertices, mesh.faces[chunk]), process=False)
-            for chunk in np.array_split(order, pieces)]
-
-
-def _compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The vertices ``faces`` use and ``faces`` renumbered to them."""
-    used, renumbered = np.unique(faces, return_inverse=True)
-    return vertices[used], renumbered.reshape(faces.shape)
+    # One mesh per face list: a list (submesh's return type also allows one merged mesh).
+    return cast(list[trimesh.Trimesh], mesh.submesh(np.array_split(order, pieces)))
