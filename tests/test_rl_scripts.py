@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from script_helpers import load_script
 
-from sim4endor.rl.config import ALGORITHMS
+from sim4endor.rl.config import ALGORITHMS, TrainConfig
 
 REPO = Path(__file__).resolve().parents[1]
 # Enough frames for a random warm-up, a few updates, an evaluation and a checkpoint.
@@ -38,6 +38,14 @@ def phantom() -> str:
     if "simplified_phantom" not in vessels.names():
         pytest.skip("vessels/simplified_phantom is not built (sim4endor vessel generate ...)")
     return "simplified_phantom"
+
+
+def _small_sac(phantom: str) -> TrainConfig:
+    """SAC on ``phantom`` with a 16-unit network: quick to build and to train in a test."""
+    from sim4endor.rl.config import apply_overrides, default_config
+
+    return apply_overrides(default_config("sac"), [f"env.domain={phantom}",
+                                                   "network.hidden_sizes=[16]"])
 
 
 def _run(args: list[str], **kwargs) -> subprocess.CompletedProcess[str]:
@@ -169,13 +177,12 @@ def test_the_expert_takes_over_where_the_policy_is_stuck_and_finetuning_learns_i
 
     from sim4endor.rl.algorithms import build_agent
     from sim4endor.rl.checkpoint import Progress, save_checkpoint
-    from sim4endor.rl.config import apply_overrides, default_config, save_config
+    from sim4endor.rl.config import save_config
     from sim4endor.rl.envs import sim4endor_env
     from sim4endor.rl.runs import load_agent
 
     script = load_script("experiments/generalist/takeover.py")
-    config = apply_overrides(default_config("sac"), [f"env.domain={phantom}",
-                                                     "network.hidden_sizes=[16]"])
+    config = _small_sac(phantom)
     env = sim4endor_env(config.env, 0)
     try:
         agent = build_agent(config, env.observation_spec, env.action_spec)
@@ -231,13 +238,11 @@ def test_expert_dagger_labels_every_step_and_cloning_fits_the_labels(
     import torch
 
     from sim4endor.rl.algorithms import build_agent
-    from sim4endor.rl.config import apply_overrides, default_config
     from sim4endor.rl.envs import sim4endor_env
     from sim4endor.rl.runs import load_agent
 
     script = load_script("experiments/generalist/expert_dagger.py")
-    config = apply_overrides(default_config("sac"), [f"env.domain={phantom}",
-                                                     "network.hidden_sizes=[16]"])
+    config = _small_sac(phantom)
     env = sim4endor_env(config.env, 0)
     try:
         agent = build_agent(config, env.observation_spec, env.action_spec)

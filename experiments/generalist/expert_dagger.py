@@ -2,9 +2,10 @@
 
 The shipped recipe (the model card's "Training") spends 97 min on SAC and 83 min on takeover
 rounds with the probing expert, whose lookahead makes an episode cost 2-12 s. The plain
-:class:`~sim4endor.tasks.expert.CenterlineExpert` is reactive (one label costs a projection
-on the centerline) and, with the workhorse's catalogue tip (``3,75,5,50``), reaches 96.9 % of
-the targets of fresh coronary-calibre trees by itself
+:class:`~sim4endor.tasks.expert.CenterlineExpert` (``baselines.ScriptedExpert``) is
+reactive (one label costs a projection on the centerline) and, with the workhorse's
+catalogue tip (``3,75,5,50``), reaches 96.9 % of the targets of fresh coronary-calibre trees
+by itself
 (experiments/results/reachability/vessel_build_fresh_calibre_trees_3200-3223_*). This script
 measures what DAgger (Ross et al., AISTATS 2011) with it as the teacher gives, and in how
 much wall-clock:
@@ -57,14 +58,13 @@ from torchrl.envs import EnvBase, ExplorationType, set_exploration_type
 
 from sim4endor._atomic import atomic_directory, atomic_write_bytes
 from sim4endor.assets import run_or_policy
-from sim4endor.rl import checkpoint
+from sim4endor.rl import baselines, checkpoint
 from sim4endor.rl.algorithms import Agent, build_agent
 from sim4endor.rl.config import TrainConfig, apply_overrides, save_config
 from sim4endor.rl.envs import sim4endor_env
 from sim4endor.rl.evaluation import reached, rollouts
 from sim4endor.rl.runs import load_agent_for, run_config
 from sim4endor.rl.trainer import CONFIG_FILE
-from sim4endor.tasks.expert import CenterlineExpert
 
 #: Labels are clipped this far inside [-1, 1]: the actor's tanh reaches ±1 only at infinite
 #: pre-activations, which a saturated label would drive it towards.
@@ -84,19 +84,12 @@ class Labelled(TensorDictModuleBase):
         self.in_keys = [*(actor.in_keys if actor else ()), "step_count"]
         self.out_keys = ["action", "label"]
         self._actor = actor
-        # The expert reads the physics, which the TorchRL wrappers hand through by attribute.
-        self._dm_env = env.base_env.dm_env
-        self._expert = CenterlineExpert()
+        self._expert = baselines.policy(baselines.ScriptedExpert(), env)
 
     def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
-        if int(tensordict["step_count"]) == 0:
-            self._expert.reset()
-        label = torch.as_tensor(self._expert(self._dm_env.physics, self._dm_env.task),
-                                dtype=torch.float32)
-        tensordict["label"] = label
-        if self._actor is None:
-            tensordict["action"] = label.clone()
-        else:
+        self._expert(tensordict)
+        tensordict["label"] = tensordict["action"].clone()
+        if self._actor is not None:
             self._actor(tensordict)
         return tensordict
 
