@@ -85,12 +85,6 @@ def build_command(generated: Path, name: str, out: Path, below_acceptance: bool 
     return command + (["--allow-below-acceptance"] if below_acceptance else [])
 
 
-def run_cli(argv: list[str]) -> int:
-    """Runs one ``sim4endor`` command in this process; returns its exit status (the command
-    line prints its own one-line error, e.g. a build below the acceptance checks: status 2)."""
-    return cli.main(argv)
-
-
 def folder_row(folder: Path, seconds: float | None) -> str:
     """Returns the line printed for a built folder: hulls, checks and build time."""
     manifest = json.loads((folder / "manifest.json").read_text())
@@ -130,12 +124,14 @@ def main() -> None:
             continue
         start = time.perf_counter()
         generated = tmp / f"g{seed}"
-        if not (generated / "manifest.json").is_file() and run_cli(
+        # A non-zero status: the command line printed its own one-line error (a build below
+        # the acceptance checks exits 2).
+        if not (generated / "manifest.json").is_file() and cli.main(
             generate_command(seed, args.calibre, generated)
         ):
             failed.append(seed)
             continue
-        if run_cli(build_command(generated, folder.name, folder, args.allow_below_acceptance)):
+        if cli.main(build_command(generated, folder.name, folder, args.allow_below_acceptance)):
             failed.append(seed)
             continue
         print(folder_row(folder, time.perf_counter() - start), flush=True)
