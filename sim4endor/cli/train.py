@@ -1,4 +1,5 @@
-"""``sim4endor train ALGO --domain D --task T ... --out RUN_DIR``: train one agent."""
+"""``sim4endor train ALGO --domain D --task T ... --out RUN_DIR``: train one agent;
+``sim4endor train generalist --out DIR``: a shipped policy's recipe."""
 
 from __future__ import annotations
 
@@ -8,20 +9,29 @@ from pathlib import Path
 from sim4endor import _json as strict_json
 from sim4endor.cli import args as arg_types
 from sim4endor.rl.config import ALGORITHMS
+from sim4endor.rl.recipe import recipe_names
+
+#: Flags of ``train ALGO`` that a recipe refuses: it sets these itself.
+_ALGORITHM_FLAGS = ("domain", "task", "reward", "frames", "backend", "ray_address", "device",
+                    "config")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Adds the ``train`` subcommand."""
     parser = subparsers.add_parser(
         "train",
-        help="train DDPG, SAC or PPO on a navigation task (resumes an interrupted run)",
+        help="train DDPG, SAC or PPO on a navigation task, or reproduce a shipped policy "
+             "(resumes an interrupted run)",
         description=(
             "Train an agent with the paper's hyper-parameters (overridable). Writes config.yaml, "
             "resumable checkpoints, CSV logs and evaluations under --out; rerunning the same "
-            "command resumes from the last checkpoint."
+            "command resumes from the last checkpoint. With a shipped policy's name (e.g. "
+            "generalist), runs its recipe (its recipe.yaml; --seed, --envs, --set FIELD=VALUE "
+            "override it) and writes the policy to --out/policy."
         ),
     )
-    parser.add_argument("algorithm", choices=ALGORITHMS, help="learning algorithm")
+    parser.add_argument("algorithm", choices=(*ALGORITHMS, *recipe_names()),
+                        help="learning algorithm, or a shipped policy whose recipe to run")
     parser.add_argument("--domain", help="suite domain (default: simplified_phantom)")
     parser.add_argument("--task", help="task of the domain (default: task_a)")
     parser.add_argument("--reward", choices=("manifold", "euclidean"), help="progress distance")
@@ -60,6 +70,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Builds the config from defaults, file, flags and overrides; trains; prints the result."""
+    if args.algorithm not in ALGORITHMS:
+        return run_recipe(args)
     from sim4endor.rl.config import ConfigError, apply_overrides, default_config, load_config
     from sim4endor.rl.trainer import train
 
@@ -88,6 +100,27 @@ def run(args: argparse.Namespace) -> int:
         )
     metrics = train(config, args.out, progress=not args.no_progress, ray_address=args.ray_address)
     print(strict_json.dumps(metrics))  # noqa: T201
+    return 0
+
+
+def run_recipe(args: argparse.Namespace) -> int:
+    """Runs the recipe of the shipped policy ``args.algorithm``; prints the run's summary."""
+    from sim4endor.rl.config import ConfigError
+    from sim4endor.rl.recipe import RecipeRun, load_recipe
+
+    # These flags default to None: one that is set was given.
+    given = [name for name in _ALGORITHM_FLAGS if getattr(args, name) is not None]
+    extra = sorted(f"--{name.replace('_', '-')}"
+                   for name in (*given, *arg_types.task_arguments(args)))
+    if extra:
+        raise ConfigError(
+            f"{' '.join(extra)}: the {args.algorithm} recipe sets these itself; it takes "
+            "--seed, --envs, --set FIELD=VALUE, --out and --no-progress.")
+    overrides = [f"{key}={value}" for key, value in (("seed", args.seed), ("envs", args.envs))
+                 if value is not None]
+    recipe = load_recipe(args.algorithm, [*overrides, *args.overrides])
+    summary = RecipeRun(recipe, args.out, progress=not args.no_progress).run()
+    print(strict_json.dumps(summary))  # noqa: T201
     return 0
 
 

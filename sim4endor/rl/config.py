@@ -485,10 +485,16 @@ def from_dict(
         ConfigError: on an unknown section or field, naming the valid ones.
     """
     algorithm = str(data.get("algorithm", algorithm))
-    return _merge(default_config(algorithm), data, source)
+    return merge_fields(default_config(algorithm), data, source)
 
 
-def _merge(obj: Any, data: Mapping[str, Any], where: str) -> Any:
+def merge_fields(obj: Any, data: Mapping[str, Any], where: str) -> Any:
+    """Returns the frozen dataclass ``obj`` with the fields ``data`` names replaced, read as
+    their annotations say (nested dataclasses from mappings, tuples from lists).
+
+    Raises:
+        ConfigError: on an unknown field or a value of the wrong kind, naming it by ``where``.
+    """
     fields = {f.name: f for f in dataclasses.fields(obj)}
     hints = typing.get_type_hints(type(obj))
     changes: dict[str, Any] = {}
@@ -501,7 +507,7 @@ def _merge(obj: Any, data: Mapping[str, Any], where: str) -> Any:
         if dataclasses.is_dataclass(current):
             if not isinstance(value, Mapping):
                 raise ConfigError(f"{where}: {key!r} must be a mapping of its fields.")
-            changes[key] = _merge(current, value, f"{where}.{key}")
+            changes[key] = merge_fields(current, value, f"{where}.{key}")
         else:
             changes[key] = _coerce(value, hints[key], f"{where}.{key}")
     return dataclasses.replace(obj, **changes)
@@ -512,6 +518,10 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
     if origin is types.UnionType:  # only `X | None` fields: None, or a value read as X
         (kind,) = [arg for arg in typing.get_args(hint) if arg is not type(None)]
         return None if value is None else _coerce(value, kind, where)
+    if dataclasses.is_dataclass(hint) and isinstance(hint, type):
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"{where} must be a mapping of {hint.__name__}'s fields.")
+        return merge_fields(hint(), value, where)
     if origin is Literal:
         if value not in typing.get_args(hint):
             raise ConfigError(f"{where}={value!r}; choose one of {list(typing.get_args(hint))}.")
@@ -566,6 +576,12 @@ def load_config(
 
 def apply_overrides(config: TrainConfig, overrides: Iterable[str]) -> TrainConfig:
     """Applies ``section.field=value`` strings (values parsed as YAML, e.g. ``optim.lr=3e-4``)."""
+    return typing.cast(TrainConfig, override_fields(config, overrides))
+
+
+def override_fields(obj: Any, overrides: Iterable[str]) -> Any:
+    """Returns the frozen dataclass ``obj`` with ``section.field=value`` strings applied
+    (values parsed as YAML), as :func:`merge_fields` reads them."""
     data: dict[str, Any] = {}
     for item in overrides:
         key, sep, raw = item.partition("=")
@@ -576,7 +592,7 @@ def apply_overrides(config: TrainConfig, overrides: Iterable[str]) -> TrainConfi
         for part in parents:
             node = node.setdefault(part, {})
         node[leaf] = yaml.safe_load(raw)
-    return typing.cast(TrainConfig, _merge(config, data, "override"))
+    return merge_fields(obj, data, "override")
 
 
 def save_config(config: TrainConfig, path: Path) -> None:

@@ -1,0 +1,353 @@
+"""A shipped policy's training recipe: ``sim4endor train generalist --out DIR``.
+
+A recipe (``recipe.yaml`` beside a shipped policy, read into :class:`RecipeConfig`) trains a
+policy by imitation of the privileged expert (:mod:`sim4endor.rl.imitation`), in stages:
+
+``demonstrations``
+    the plain expert drives ``episodes`` episodes on each source (a domain's tree pool);
+``clone``
+    behaviour cloning of them into a fresh actor;
+``takeover_K``, ``finetune_K`` (K = 1 .. ``rounds``)
+    the last stage's policy drives each takeover source, the probing expert taking over
+    where it stalls; then the last policy is cloned on every label so far (HG-DAgger).
+
+Episodes are collected in chunks of ``chunk_episodes`` (one ``.npz`` each under
+``DIR/data``, written atomically), by ``envs`` worker processes; every learnt stage is a run
+folder under ``DIR/stages`` and a line of ``DIR/log.jsonl``. Rerunning the same command after
+Ctrl-C or a lost machine resumes: finished stages and chunks are kept, a cloning stage that
+was cut short is redone (it takes a minute). The last stage is copied to ``DIR/policy``, a run
+folder every command that takes a policy loads (``sim4endor evaluate DIR/policy``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import multiprocessing
+import shutil
+import signal
+import time
+from collections.abc import Callable, Iterable, Iterator
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+import yaml
+from tqdm.auto import tqdm
+
+from sim4endor._atomic import atomic_directory, atomic_write_text
+from sim4endor._checks import require
+from sim4endor.assets import policies_dir
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.rl import checkpoint, imitation
+from sim4endor.rl.algorithms import build_agent
+from sim4endor.rl.config import (
+    ConfigError,
+    EnvConfig,
+    TrainConfig,
+    default_config,
+    merge_fields,
+    override_fields,
+    save_config,
+    to_dict,
+)
+from sim4endor.rl.envs import sim4endor_env
+from sim4endor.rl.runs import evaluation_env, load_agent_for, run_config
+from sim4endor.rl.trainer import CONFIG_FILE
+
+#: The recipe's file beside a shipped policy, and the resolved copy a recipe run keeps.
+RECIPE_FILE = "recipe.yaml"
+#: One line per finished stage, in a recipe run's folder.
+LOG_FILE = "log.jsonl"
+#: The final policy's run folder inside a recipe run's folder.
+POLICY_DIR = "policy"
+
+
+class RecipeError(Sim4EndoRError):
+    """A recipe cannot run as asked: an unknown name, or an output folder it cannot use."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Source:
+    """Where episodes are collected: a domain's tree pool.
+
+    Attributes:
+        domain: suite domain, e.g. ``coronary`` (the policy's own, with its training trees)
+            or ``random_coronary``.
+        episodes: episodes collected there per stage.
+        pool_seed: seed of the first tree (``None``: the policy's own training trees).
+        pool_size: number of trees (``None``: the policy's own).
+    """
+
+    domain: str = "coronary"
+    episodes: int = 60
+    pool_seed: int | None = None
+    pool_size: int | None = None
+
+    def __post_init__(self) -> None:
+        require(self, "source", ConfigError, positive=("episodes",))
+
+    def env(self, policy: EnvConfig) -> EnvConfig:
+        """The environment of this source, for a policy trained with ``policy``'s settings."""
+        fields: dict[str, Any] = {"domain": self.domain}
+        fields.update({k: v for k, v in (("pool_seed", self.pool_seed),
+                                          ("pool_size", self.pool_size)) if v is not None})
+        return dataclasses.replace(evaluation_env(policy, fields), num_envs=1)
+
+
+@dataclasses.dataclass(frozen=True)
+class CloneSettings:
+    """Behaviour cloning (:func:`sim4endor.rl.imitation.clone`): Adam on random batches.
+
+    Attributes:
+        steps: gradient steps per cloning stage.
+        batch: labelled steps per batch.
+        lr: Adam's learning rate.
+    """
+
+    steps: int = 4000
+    batch: int = 256
+    lr: float = 3e-4
+
+    def __post_init__(self) -> None:
+        require(self, "clone", ConfigError, positive=("steps", "batch", "lr"))
+
+
+@dataclasses.dataclass(frozen=True)
+class RecipeConfig:
+    """Everything a recipe run needs; saved as ``recipe.yaml`` in its folder.
+
+    Attributes:
+        seed: seeds torch and every chunk's environment.
+        envs: worker processes collecting episodes (1: in this process).
+        policy: the trained policy's run config (observation set, network, wire and tip,
+            training trees); the SAC settings are what ``sim4endor train sac --config``
+            would use to train it further.
+        demonstrations: where the plain expert's episodes are collected.
+        clone: behaviour cloning settings, of the clone and of every finetune.
+        rounds: takeover rounds after the clone.
+        takeovers: where each round's takeover episodes are collected.
+        stall_steps: control steps without ``imitation.MIN_GAIN`` of progress before the
+            probing expert takes over.
+        max_steps: control-step cap of an episode (the task's time limit also applies).
+        chunk_episodes: episodes per saved chunk: what Ctrl-C can lose at most, per worker.
+    """
+
+    seed: int = 1
+    envs: int = 2
+    policy: TrainConfig = dataclasses.field(default_factory=lambda: default_config("sac"))
+    demonstrations: tuple[Source, ...] = (Source(),)
+    clone: CloneSettings = CloneSettings()
+    rounds: int = 1
+    takeovers: tuple[Source, ...] = (Source(),)
+    stall_steps: int = 40
+    max_steps: int = 800
+    chunk_episodes: int = 10
+
+    def __post_init__(self) -> None:
+        require(self, "", ConfigError,
+                positive=("envs", "stall_steps", "max_steps", "chunk_episodes"),
+                non_negative=("seed", "rounds"))
+        if not self.demonstrations:
+            raise ConfigError("demonstrations: name at least one source of expert episodes.")
+        if self.rounds and not self.takeovers:
+            raise ConfigError(f"rounds={self.rounds} needs at least one takeovers source.")
+
+
+def recipe_names() -> tuple[str, ...]:
+    """Shipped policies with a recipe, e.g. ``("generalist",)``."""
+    folder = policies_dir()
+    return tuple(sorted(p.name for p in folder.iterdir() if (p / RECIPE_FILE).is_file())) \
+        if folder.is_dir() else ()
+
+
+def load_recipe(name: str, overrides: Iterable[str] = ()) -> RecipeConfig:
+    """The recipe of the shipped policy ``name``, with ``field=value`` overrides applied
+    (e.g. ``seed=2``, ``clone.steps=100``, ``policy.env.tip='3,75'``)."""
+    if name not in recipe_names():
+        raise RecipeError(f"No recipe named {name!r}; the shipped recipes are "
+                          f"{list(recipe_names())}.")
+    path = policies_dir() / name / RECIPE_FILE
+    data = yaml.safe_load(path.read_text())
+    recipe = merge_fields(RecipeConfig(), data, str(path))
+    return override_fields(recipe, overrides)
+
+
+def recipe_dict(recipe: RecipeConfig) -> dict[str, Any]:
+    """``recipe`` as plain nested dicts and lists (YAML friendly)."""
+    data = dataclasses.asdict(recipe)
+    data["policy"] = to_dict(recipe.policy)
+    return json.loads(json.dumps(data))  # tuples to lists
+
+
+@dataclasses.dataclass(frozen=True)
+class _Chunk:
+    """Episodes one worker collects and saves."""
+
+    env: EnvConfig
+    seed: int
+    episodes: int
+    driver: Path | None  # a run folder whose policy drives (takeovers), or the plain expert
+    stall_steps: int
+    max_steps: int
+    out: Path
+
+
+def _collect_chunk(chunk: _Chunk) -> tuple[int, int, int]:
+    """Collects and saves one chunk; returns its episodes, successes and labelled steps."""
+    torch.set_num_threads(1)
+    env = sim4endor_env(chunk.env, chunk.seed)
+    try:
+        actor = None
+        if chunk.driver is not None:
+            actor = load_agent_for(chunk.driver, run_config(chunk.driver), env).env_actor
+        episodes = imitation.collect(env, actor, episodes=chunk.episodes,
+                                     max_steps=chunk.max_steps, stall_steps=chunk.stall_steps)
+    finally:
+        env.close()
+    episodes.save(chunk.out)
+    return len(episodes.success), int(episodes.success.sum()), int(episodes.expert.sum())
+
+
+def _ignore_interrupt() -> None:
+    # Ctrl-C reaches every process of the terminal's group: the workers leave it to the main
+    # process, which terminates them, so no worker dies half-way through writing a chunk.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+class RecipeRun:
+    """One recipe run in ``out``: its stages, resumed from what the folder already holds."""
+
+    def __init__(self, recipe: RecipeConfig, out: Path, *, progress: bool = True) -> None:
+        self.recipe = recipe
+        self.out = Path(out)
+        self.progress = progress
+        self._claim_folder()
+
+    def _claim_folder(self) -> None:
+        """Refuses a folder that is not this recipe's run; writes ``recipe.yaml``."""
+        path = self.out / RECIPE_FILE
+        wanted = recipe_dict(self.recipe)
+        if path.is_file():
+            saved = yaml.safe_load(path.read_text())
+            if saved != wanted:
+                changed = sorted(k for k in wanted if saved.get(k) != wanted[k])
+                raise RecipeError(
+                    f"{self.out} holds a run of another recipe (differs in {changed}); resume "
+                    "it with the same settings or choose a new --out folder.")
+        elif self.out.exists() and any(self.out.iterdir()):
+            raise RecipeError(f"{self.out} is not empty and holds no {RECIPE_FILE}; choose a "
+                              "new or empty --out folder (a recipe run writes many files).")
+        else:
+            atomic_write_text(path, yaml.safe_dump(wanted, sort_keys=False))
+
+    def _done(self) -> dict[str, dict[str, Any]]:
+        log = self.out / LOG_FILE
+        lines = log.read_text().splitlines() if log.is_file() else []
+        return {record["stage"]: record for record in map(json.loads, lines)}
+
+    def _stages(self) -> Iterator[tuple[str, Callable[[], dict[str, Any]]]]:
+        recipe, stages = self.recipe, self.out / "stages"
+        yield "demonstrations", partial(self._collect, "demonstrations", 0,
+                                        recipe.demonstrations, None)
+        yield "clone", partial(self._clone, "clone", None)
+        last = "clone"
+        for k in range(1, recipe.rounds + 1):
+            yield f"takeover_{k}", partial(self._collect, f"takeover_{k}", k, recipe.takeovers,
+                                           stages / last)
+            yield f"finetune_{k}", partial(self._clone, f"finetune_{k}", last)
+            last = f"finetune_{k}"
+
+    def run(self) -> dict[str, Any]:
+        """Runs the stages not yet done; returns the run's summary (stage records, total
+        seconds, the policy folder)."""
+        done = self._done()
+        stages = list(self._stages())
+        for name, stage in stages:
+            if name in done:
+                continue
+            start = time.monotonic()
+            record = {"stage": name, **stage()}
+            record["seconds"] = round(time.monotonic() - start, 1)
+            with (self.out / LOG_FILE).open("a") as log:
+                log.write(json.dumps(record) + "\n")
+            done[name] = record
+            if self.progress:
+                tqdm.write(json.dumps(record))
+        last = self.out / "stages" / stages[-1][0]
+        policy = self.out / POLICY_DIR
+        if not (policy / CONFIG_FILE).is_file():
+            with atomic_directory(policy) as staging:
+                shutil.copytree(last, staging, dirs_exist_ok=True)
+        return {"policy": str(policy),
+                "seconds": round(sum(r["seconds"] for r in done.values()), 1),
+                "stages": list(done.values())}
+
+    def _collect(self, stage: str, index: int, sources: tuple[Source, ...],
+                 driver: Path | None) -> dict[str, Any]:
+        """Collects every source's episodes in chunks, skipping the chunks already saved."""
+        recipe = self.recipe
+        chunks = []
+        for s, source in enumerate(sources):
+            env = source.env(recipe.policy.env)
+            for c, first in enumerate(range(0, source.episodes, recipe.chunk_episodes)):
+                chunks.append(_Chunk(
+                    env=env,
+                    # Apart for every seed, stage, source and chunk.
+                    seed=recipe.seed * 1_000_000 + index * 10_000 + s * 1_000 + c,
+                    episodes=min(recipe.chunk_episodes, source.episodes - first),
+                    driver=driver, stall_steps=recipe.stall_steps,
+                    max_steps=recipe.max_steps,
+                    out=self.out / "data" / f"{stage}_{s}_{source.domain}_{c:03d}.npz"))
+        todo = [chunk for chunk in chunks if not chunk.out.is_file()]
+        total = sum(chunk.episodes for chunk in chunks)
+        with tqdm(total=total, initial=total - sum(c.episodes for c in todo), unit="episodes",
+                  desc=stage, disable=not self.progress) as bar:
+            if recipe.envs == 1 or len(todo) <= 1:
+                for chunk in todo:
+                    _collect_chunk(chunk)
+                    bar.update(chunk.episodes)
+            else:
+                context = multiprocessing.get_context("spawn")  # CoACD's OpenMP: never fork
+                with context.Pool(min(recipe.envs, len(todo)),
+                                  initializer=_ignore_interrupt) as pool:
+                    for episodes, _, _ in pool.imap_unordered(_collect_chunk, todo):
+                        bar.update(episodes)
+        data = [imitation.Episodes.load(chunk.out) for chunk in chunks]
+        return {"episodes": int(sum(len(d.success) for d in data)),
+                "successes": int(sum(d.success.sum() for d in data)),
+                "labels": int(sum(d.expert.sum() for d in data))}
+
+    def _clone(self, stage: str, start: str | None) -> dict[str, Any]:
+        """Clones every label collected so far into ``start``'s policy (None: a fresh one);
+        writes the stage's run folder."""
+        recipe = self.recipe
+        torch.manual_seed(recipe.seed)
+        groups = [self._labels("demonstrations")]
+        if start is not None:  # a finetune: the takeovers of every round so far, as a group
+            groups.append(self._labels("takeover_"))
+        config = dataclasses.replace(recipe.policy, seed=recipe.seed)
+        env = sim4endor_env(recipe.demonstrations[0].env(config.env), recipe.seed)
+        try:
+            if start is None:
+                agent = build_agent(config, env.observation_spec, env.action_spec)
+            else:
+                agent = load_agent_for(self.out / "stages" / start, config, env)
+        finally:
+            env.close()
+        error = imitation.clone(agent.actor, groups, steps=recipe.clone.steps,
+                                batch=recipe.clone.batch, lr=recipe.clone.lr,
+                                seed=recipe.seed, progress=self.progress, desc=stage)
+        with atomic_directory(self.out / "stages" / stage) as staging:
+            save_config(config, staging / CONFIG_FILE)
+            checkpoint.save_checkpoint(staging, agent, checkpoint.Progress(), None)
+        return {"labels": [len(label) for _, label in groups], "squared_error": round(error, 4)}
+
+    def _labels(self, prefix: str) -> tuple[np.ndarray, np.ndarray]:
+        """The expert's steps of every chunk saved by the stages named ``prefix...``."""
+        labels = [imitation.Episodes.load(path).labels
+                  for path in sorted((self.out / "data").glob(f"{prefix}*.npz"))]
+        return (np.concatenate([obs for obs, _ in labels]),
+                np.concatenate([action for _, action in labels]))
