@@ -263,6 +263,9 @@ class RecipeRun:
     def run(self) -> dict[str, Any]:
         """Runs the stages not yet done; returns the run's summary (stage records, total
         seconds, the policy folder)."""
+        # The networks are small: one thread clones fastest, and several in each of a few
+        # processes sharing the cores slow each other twentyfold (measured).
+        torch.set_num_threads(self.recipe.policy.torch_threads)
         done = self._done()
         stages = list(self._stages())
         for name, stage in stages:

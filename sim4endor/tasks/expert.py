@@ -370,7 +370,7 @@ class ProbingExpert(CenterlineExpert):
         ``probe.min_gain`` closer than ``closest`` (m, the episode's closest approach).
 
         It reads only the simulation, not the episode's history, so it can also take over
-        from another policy where that one is stuck (experiments/generalist/takeover.py).
+        from another policy where that one is stuck (sim4endor.rl.imitation.Takeover).
         """
         substeps = task.config.action.physics_steps(physics.timestep())
         aims: list[tuple[Policy, int]] = []
