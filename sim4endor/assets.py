@@ -80,6 +80,17 @@ def policy_names() -> tuple[str, ...]:
         if folder.is_dir() else ()
 
 
+#: A shipped policy's training recipe, beside its ``config.yaml`` (``sim4endor.rl.recipe``).
+RECIPE_FILE = "recipe.yaml"
+
+
+def recipe_names() -> tuple[str, ...]:
+    """Shipped policies with a recipe, e.g. ``("generalist",)``."""
+    folder = policies_dir()
+    return tuple(sorted(p.name for p in folder.iterdir() if (p / RECIPE_FILE).is_file())) \
+        if folder.is_dir() else ()
+
+
 def run_or_policy(spec: str | Path) -> Path:
     """A shipped policy's folder for its name (``"generalist"``), else ``spec`` as a path."""
     if str(spec) in policy_names():

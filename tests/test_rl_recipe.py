@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+from sim4endor import assets
 from sim4endor.cli import main
 from sim4endor.rl import imitation, recipe
 from sim4endor.rl.config import ConfigError, default_config
@@ -120,7 +121,7 @@ def test_recipe_refuses_flags_it_sets_itself(tmp_path: Path, capsys) -> None:
 
 def test_shipped_recipe_reads_and_names_bad_fields() -> None:
     shipped = recipe.load_recipe("generalist")
-    assert "generalist" in recipe.recipe_names()
+    assert "generalist" in assets.recipe_names()
     assert shipped.policy.algorithm == "sac" and shipped.rounds >= 1
     assert {s.domain for s in shipped.demonstrations} == {"coronary", "random_coronary"}
     assert recipe.load_recipe("generalist", ["seed=7", "clone.steps=3"]).clone.steps == 3

@@ -7,9 +7,9 @@ import argparse
 from pathlib import Path
 
 from sim4endor import _json as strict_json
+from sim4endor.assets import recipe_names
 from sim4endor.cli import args as arg_types
 from sim4endor.rl.config import ALGORITHMS
-from sim4endor.rl.recipe import recipe_names
 
 #: Flags of ``train ALGO`` that a recipe refuses: it sets these itself.
 _ALGORITHM_FLAGS = ("domain", "task", "reward", "frames", "backend", "ray_address", "device",

@@ -39,7 +39,7 @@ from tqdm.auto import tqdm
 
 from sim4endor._atomic import atomic_directory, atomic_write_text
 from sim4endor._checks import require
-from sim4endor.assets import policies_dir
+from sim4endor.assets import RECIPE_FILE, policies_dir, recipe_names
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl import checkpoint, imitation
 from sim4endor.rl.algorithms import build_agent
@@ -57,8 +57,6 @@ from sim4endor.rl.envs import sim4endor_env
 from sim4endor.rl.runs import evaluation_env, load_agent_for, run_config
 from sim4endor.rl.trainer import CONFIG_FILE
 
-#: The recipe's file beside a shipped policy, and the resolved copy a recipe run keeps.
-RECIPE_FILE = "recipe.yaml"
 #: One line per finished stage, in a recipe run's folder.
 LOG_FILE = "log.jsonl"
 #: The final policy's run folder inside a recipe run's folder.
@@ -154,13 +152,6 @@ class RecipeConfig:
             raise ConfigError("demonstrations: name at least one source of expert episodes.")
         if self.rounds and not self.takeovers:
             raise ConfigError(f"rounds={self.rounds} needs at least one takeovers source.")
-
-
-def recipe_names() -> tuple[str, ...]:
-    """Shipped policies with a recipe, e.g. ``("generalist",)``."""
-    folder = policies_dir()
-    return tuple(sorted(p.name for p in folder.iterdir() if (p / RECIPE_FILE).is_file())) \
-        if folder.is_dir() else ()
 
 
 def load_recipe(name: str, overrides: Iterable[str] = ()) -> RecipeConfig:
