@@ -4,6 +4,7 @@ folders it cannot use; and the imitation pieces it is made of. Tiny budgets thro
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -109,6 +110,8 @@ def test_recipe_refuses_a_folder_it_cannot_use(tmp_path: Path, capsys) -> None:
     recipe.RecipeRun(recipe.load_recipe("generalist", ["seed=1"]), run)
     with pytest.raises(recipe.RecipeError, match=r"another recipe \(differs in \['seed'\]\)"):
         recipe.RecipeRun(recipe.load_recipe("generalist", ["seed=2"]), run)
+    # The number of workers changes only the speed: a run resumes on a bigger machine.
+    recipe.RecipeRun(recipe.load_recipe("generalist", ["seed=1", "envs=16"]), run)
 
 
 def test_recipe_refuses_flags_it_sets_itself(tmp_path: Path, capsys) -> None:
@@ -116,7 +119,33 @@ def test_recipe_refuses_flags_it_sets_itself(tmp_path: Path, capsys) -> None:
                  "--frames", "10"]) == 2
     err = capsys.readouterr().err
     assert "--frames --tip: the generalist recipe sets these itself" in err
+    assert main(["train", "generalist", "--out", str(tmp_path / "r"), "--ray-address",
+                 "10.0.0.5:6379"]) == 2
+    assert "add --backend ray" in capsys.readouterr().err
     assert not (tmp_path / "r").exists()
+
+
+@pytest.fixture
+def local_ray() -> Iterator[None]:
+    import ray
+
+    ray.init(num_cpus=2, object_store_memory=100 * 2**20, include_dashboard=False,
+             log_to_driver=False)
+    yield
+    ray.shutdown()
+
+
+@pytest.mark.usefixtures("local_ray")
+def test_ray_tasks_collect_what_local_workers_do(tmp_path: Path) -> None:
+    """Every chunk a Ray task (the takeover's driver sent with it, not read from a folder the
+    task's node may not have): the same data and the same policy as worker processes."""
+    assert _train(tmp_path / "ray", "--backend", "ray") == 0
+    assert _train(tmp_path / "local") == 0
+    assert _log(tmp_path / "ray")[2]["labels"] == _log(tmp_path / "local")[2]["labels"]
+    for on_ray, local in zip(_actor_weights(tmp_path / "ray" / recipe.POLICY_DIR),
+                             _actor_weights(tmp_path / "local" / recipe.POLICY_DIR),
+                             strict=True):
+        assert torch.equal(on_ray, local)
 
 
 def test_shipped_recipe_reads_and_names_bad_fields() -> None:

@@ -12,8 +12,7 @@ from sim4endor.cli import args as arg_types
 from sim4endor.rl.config import ALGORITHMS
 
 #: Flags of ``train ALGO`` that a recipe refuses: it sets these itself.
-_ALGORITHM_FLAGS = ("domain", "task", "reward", "frames", "backend", "ray_address", "device",
-                    "config")
+_ALGORITHM_FLAGS = ("domain", "task", "reward", "frames", "device", "config")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -115,11 +114,17 @@ def run_recipe(args: argparse.Namespace) -> int:
     if extra:
         raise ConfigError(
             f"{' '.join(extra)}: the {args.algorithm} recipe sets these itself; it takes "
-            "--seed, --envs, --set FIELD=VALUE, --out and --no-progress.")
+            "--seed, --envs, --backend, --ray-address, --set FIELD=VALUE, --out and "
+            "--no-progress.")
     overrides = [f"{key}={value}" for key, value in (("seed", args.seed), ("envs", args.envs))
                  if value is not None]
     recipe = load_recipe(args.algorithm, [*overrides, *args.overrides])
-    summary = RecipeRun(recipe, args.out, progress=not args.no_progress).run()
+    backend = args.backend or "local"
+    if args.ray_address and backend != "ray":
+        raise ConfigError(f"--ray-address {args.ray_address}: episodes are collected by local "
+                          "worker processes; add --backend ray or drop the address.")
+    summary = RecipeRun(recipe, args.out, progress=not args.no_progress, backend=backend,
+                        ray_address=args.ray_address).run()
     print(strict_json.dumps(summary))  # noqa: T201
     return 0
 

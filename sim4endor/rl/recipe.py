@@ -11,11 +11,12 @@ policy by imitation of the privileged expert (:mod:`sim4endor.rl.imitation`), in
     the last stage's policy drives each takeover source, the probing expert taking over
     where it stalls; then the last policy is cloned on every label so far (HG-DAgger).
 
-Episodes are collected in chunks of ``chunk_episodes`` (one ``.npz`` each under
-``DIR/data``, written atomically), by ``envs`` worker processes; every learnt stage is a run
-folder under ``DIR/stages`` and a line of ``DIR/log.jsonl``. Rerunning the same command after
-Ctrl-C or a lost machine resumes: finished stages and chunks are kept, a cloning stage that
-was cut short is redone (it takes a minute). The last stage is copied to ``DIR/policy``, a run
+Episodes are collected in chunks of ``chunk_episodes`` by ``envs`` worker processes or by
+Ray tasks on a cluster (``--backend ray``), and saved by this process (one ``.npz`` each under
+``DIR/data``, written atomically); every learnt stage is a run folder under ``DIR/stages`` and
+a line of ``DIR/log.jsonl``. Rerunning the same command after Ctrl-C or a lost machine
+resumes: finished stages and chunks are kept, a cloning stage that was cut short is redone
+(it takes seconds). The last stage is copied to ``DIR/policy``, a run
 folder every command that takes a policy loads (``sim4endor evaluate DIR/policy``).
 """
 
@@ -42,7 +43,7 @@ from sim4endor._checks import require
 from sim4endor.assets import RECIPE_FILE, policies_dir, recipe_names
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl import checkpoint, imitation
-from sim4endor.rl.algorithms import build_agent
+from sim4endor.rl.algorithms import Agent, build_agent
 from sim4endor.rl.config import (
     ConfigError,
     EnvConfig,
@@ -54,13 +55,18 @@ from sim4endor.rl.config import (
     to_dict,
 )
 from sim4endor.rl.envs import sim4endor_env
-from sim4endor.rl.runs import evaluation_env, load_agent_for, run_config
+from sim4endor.rl.runs import evaluation_env, load_agent_for
 from sim4endor.rl.trainer import CONFIG_FILE
 
 #: One line per finished stage, in a recipe run's folder.
 LOG_FILE = "log.jsonl"
 #: The final policy's run folder inside a recipe run's folder.
 POLICY_DIR = "policy"
+
+
+#: Recipe fields that change how fast a run goes, not what it trains: a run resumes under
+#: other values (every chunk's episodes depend on its own seed only).
+_SCHEDULING = ("envs",)
 
 
 class RecipeError(Sim4EndoRError):
@@ -174,47 +180,102 @@ def recipe_dict(recipe: RecipeConfig) -> dict[str, Any]:
 
 
 @dataclasses.dataclass(frozen=True)
+class _Driver:
+    """The policy that drives a takeover chunk, sent whole (a Ray node has no copy of the run
+    folder)."""
+
+    config: TrainConfig
+    weights: dict[str, torch.Tensor]
+
+
+@dataclasses.dataclass(frozen=True)
 class _Chunk:
-    """Episodes one worker collects and saves."""
+    """Episodes one worker collects."""
 
     env: EnvConfig
     seed: int
     episodes: int
-    driver: Path | None  # a run folder whose policy drives (takeovers), or the plain expert
+    driver: _Driver | None  # takeovers: the last stage's policy; demonstrations: the expert
     stall_steps: int
     max_steps: int
-    out: Path
+    out: Path  # where the calling process saves them
 
 
-def _collect_chunk(chunk: _Chunk) -> tuple[int, int, int]:
-    """Collects and saves one chunk; returns its episodes, successes and labelled steps."""
+def _collect_chunk(chunk: _Chunk) -> tuple[Path, imitation.Episodes]:
+    """Collects one chunk's episodes (in a worker process or a Ray task); returns them with
+    where they belong."""
     torch.set_num_threads(1)
     env = sim4endor_env(chunk.env, chunk.seed)
     try:
         actor = None
         if chunk.driver is not None:
-            actor = load_agent_for(chunk.driver, run_config(chunk.driver), env).env_actor
-        episodes = imitation.collect(env, actor, episodes=chunk.episodes,
-                                     max_steps=chunk.max_steps, stall_steps=chunk.stall_steps)
+            agent = build_agent(chunk.driver.config, env.observation_spec, env.action_spec)
+            agent.env_actor.load_state_dict(chunk.driver.weights)
+            actor = agent.env_actor
+        return chunk.out, imitation.collect(env, actor, episodes=chunk.episodes,
+                                            max_steps=chunk.max_steps,
+                                            stall_steps=chunk.stall_steps)
     finally:
         env.close()
-    episodes.save(chunk.out)
-    return len(episodes.success), int(episodes.success.sum()), int(episodes.expert.sum())
 
 
 def _ignore_interrupt() -> None:
     # Ctrl-C reaches every process of the terminal's group: the workers leave it to the main
-    # process, which terminates them, so no worker dies half-way through writing a chunk.
+    # process, which terminates them; only the main process writes chunks.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _in_processes(chunks: list[_Chunk],
+                  workers: int) -> Iterator[tuple[Path, imitation.Episodes]]:
+    """Each chunk's episodes as they finish, collected by ``workers`` processes."""
+    if workers == 1 or len(chunks) <= 1:
+        yield from map(_collect_chunk, chunks)
+        return
+    context = multiprocessing.get_context("spawn")  # CoACD's OpenMP: never fork
+    with context.Pool(min(workers, len(chunks)), initializer=_ignore_interrupt) as pool:
+        yield from pool.imap_unordered(_collect_chunk, chunks)
+
+
+def _on_ray(chunks: list[_Chunk],
+            address: str | None) -> Iterator[tuple[Path, imitation.Episodes]]:
+    """Each chunk's episodes as they finish, collected by Ray tasks (one CPU each) on the
+    cluster at ``address`` (:func:`sim4endor.rl.ray_backend.connected`)."""
+    from sim4endor.rl.ray_backend import connected
+
+    with connected(address) as ray:
+        task = ray.remote(num_cpus=1)(_collect_chunk)
+        pending = [task.remote(chunk) for chunk in chunks]
+        try:
+            while pending:
+                (ready,), pending = ray.wait(pending, num_returns=1)
+                yield ray.get(ready)
+        finally:
+            for ref in pending:  # Ctrl-C or a failed task: stop the rest
+                ray.cancel(ref, force=True)
 
 
 class RecipeRun:
     """One recipe run in ``out``: its stages, resumed from what the folder already holds."""
 
-    def __init__(self, recipe: RecipeConfig, out: Path, *, progress: bool = True) -> None:
+    def __init__(self, recipe: RecipeConfig, out: Path, *, progress: bool = True,
+                 backend: str = "local", ray_address: str | None = None) -> None:
+        """
+        Args:
+            recipe: what to run.
+            out: the run's folder: new, empty, or a run of the same recipe (resumed).
+            progress: show progress bars.
+            backend: who collects episodes: ``local``, ``recipe.envs`` worker processes;
+                ``ray``, one Ray task per chunk on the cluster at ``ray_address``
+                (:func:`sim4endor.rl.ray_backend.connected`), as many at once as it has CPUs.
+            ray_address: the cluster's head node, ``HOST:PORT``.
+        """
+        if backend not in ("local", "ray"):
+            raise RecipeError(f"backend {backend!r}: choose local or ray.")
         self.recipe = recipe
         self.out = Path(out)
         self.progress = progress
+        self.backend = backend
+        self.ray_address = ray_address
         self._claim_folder()
 
     def _claim_folder(self) -> None:
@@ -223,8 +284,9 @@ class RecipeRun:
         wanted = recipe_dict(self.recipe)
         if path.is_file():
             saved = yaml.safe_load(path.read_text())
-            if saved != wanted:
-                changed = sorted(k for k in wanted if saved.get(k) != wanted[k])
+            changed = sorted(k for k in wanted
+                             if k not in _SCHEDULING and saved.get(k) != wanted[k])
+            if changed:
                 raise RecipeError(
                     f"{self.out} holds a run of another recipe (differs in {changed}); resume "
                     "it with the same settings or choose a new --out folder.")
@@ -240,14 +302,14 @@ class RecipeRun:
         return {record["stage"]: record for record in map(json.loads, lines)}
 
     def _stages(self) -> Iterator[tuple[str, Callable[[], dict[str, Any]]]]:
-        recipe, stages = self.recipe, self.out / "stages"
+        recipe = self.recipe
         yield "demonstrations", partial(self._collect, "demonstrations", 0,
                                         recipe.demonstrations, None)
         yield "clone", partial(self._clone, "clone", None)
         last = "clone"
         for k in range(1, recipe.rounds + 1):
             yield f"takeover_{k}", partial(self._collect, f"takeover_{k}", k, recipe.takeovers,
-                                           stages / last)
+                                           last)
             yield f"finetune_{k}", partial(self._clone, f"finetune_{k}", last)
             last = f"finetune_{k}"
 
@@ -280,10 +342,11 @@ class RecipeRun:
                 "stages": list(done.values())}
 
     def _collect(self, stage: str, index: int, sources: tuple[Source, ...],
-                 driver: Path | None) -> dict[str, Any]:
-        """Collects every source's episodes in chunks, skipping the chunks already saved."""
+                 driver: str | None) -> dict[str, Any]:
+        """Collects every source's episodes in chunks, skipping the chunks already saved;
+        ``driver``, a stage whose policy drives (None: the plain expert)."""
         recipe = self.recipe
-        chunks = []
+        chunks: list[_Chunk] = []
         for s, source in enumerate(sources):
             env = source.env(recipe.policy.env)
             for c, first in enumerate(range(0, source.episodes, recipe.chunk_episodes)):
@@ -292,23 +355,22 @@ class RecipeRun:
                     # Apart for every seed, stage, source and chunk.
                     seed=recipe.seed * 1_000_000 + index * 10_000 + s * 1_000 + c,
                     episodes=min(recipe.chunk_episodes, source.episodes - first),
-                    driver=driver, stall_steps=recipe.stall_steps,
+                    driver=None, stall_steps=recipe.stall_steps,
                     max_steps=recipe.max_steps,
                     out=self.out / "data" / f"{stage}_{s}_{source.domain}_{c:03d}.npz"))
         todo = [chunk for chunk in chunks if not chunk.out.is_file()]
+        if driver is not None and todo:
+            agent = self._agent(driver)
+            todo = [dataclasses.replace(chunk, driver=_Driver(
+                self._config, agent.env_actor.state_dict())) for chunk in todo]
         total = sum(chunk.episodes for chunk in chunks)
+        finished = (_on_ray(todo, self.ray_address) if self.backend == "ray"
+                    else _in_processes(todo, recipe.envs))
         with tqdm(total=total, initial=total - sum(c.episodes for c in todo), unit="episodes",
                   desc=stage, disable=not self.progress) as bar:
-            if recipe.envs == 1 or len(todo) <= 1:
-                for chunk in todo:
-                    _collect_chunk(chunk)
-                    bar.update(chunk.episodes)
-            else:
-                context = multiprocessing.get_context("spawn")  # CoACD's OpenMP: never fork
-                with context.Pool(min(recipe.envs, len(todo)),
-                                  initializer=_ignore_interrupt) as pool:
-                    for episodes, _, _ in pool.imap_unordered(_collect_chunk, todo):
-                        bar.update(episodes)
+            for path, episodes in finished:
+                episodes.save(path)
+                bar.update(len(episodes.success))
         data = [imitation.Episodes.load(chunk.out) for chunk in chunks]
         return {"episodes": int(sum(len(d.success) for d in data)),
                 "successes": int(sum(d.success.sum() for d in data)),
@@ -322,22 +384,30 @@ class RecipeRun:
         groups = [self._labels("demonstrations")]
         if start is not None:  # a finetune: the takeovers of every round so far, as a group
             groups.append(self._labels("takeover_"))
-        config = dataclasses.replace(recipe.policy, seed=recipe.seed)
-        env = sim4endor_env(recipe.demonstrations[0].env(config.env), recipe.seed)
-        try:
-            if start is None:
-                agent = build_agent(config, env.observation_spec, env.action_spec)
-            else:
-                agent = load_agent_for(self.out / "stages" / start, config, env)
-        finally:
-            env.close()
+        agent = self._agent(start)
         error = imitation.clone(agent.actor, groups, steps=recipe.clone.steps,
                                 batch=recipe.clone.batch, lr=recipe.clone.lr,
                                 seed=recipe.seed, progress=self.progress, desc=stage)
         with atomic_directory(self.out / "stages" / stage) as staging:
-            save_config(config, staging / CONFIG_FILE)
+            save_config(self._config, staging / CONFIG_FILE)
             checkpoint.save_checkpoint(staging, agent, checkpoint.Progress(), None)
         return {"labels": [len(label) for _, label in groups], "squared_error": round(error, 4)}
+
+    @property
+    def _config(self) -> TrainConfig:
+        """Every stage's run config: the recipe's policy, on the recipe's seed."""
+        return dataclasses.replace(self.recipe.policy, seed=self.recipe.seed)
+
+    def _agent(self, stage: str | None) -> Agent:
+        """The policy of a finished ``stage`` (None: a fresh one)."""
+        env = sim4endor_env(self.recipe.demonstrations[0].env(self._config.env),
+                            self.recipe.seed)
+        try:
+            if stage is None:
+                return build_agent(self._config, env.observation_spec, env.action_spec)
+            return load_agent_for(self.out / "stages" / stage, self._config, env)
+        finally:
+            env.close()
 
     def _labels(self, prefix: str) -> tuple[np.ndarray, np.ndarray]:
         """The expert's steps of every chunk saved by the stages named ``prefix...``."""
