@@ -3,6 +3,7 @@ folders it cannot use; and the imitation pieces it is made of. Tiny budgets thro
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Iterator
 from pathlib import Path
@@ -160,6 +161,31 @@ def test_shipped_recipe_reads_and_names_bad_fields() -> None:
         recipe.load_recipe("generalist", ["demonstrations=[{domain: coronary, episodes: 0}]"])
     with pytest.raises(recipe.RecipeError, match="No recipe named 'nope'"):
         recipe.load_recipe("nope")
+
+
+def test_successful_keeps_the_episodes_that_reached_their_target() -> None:
+    episodes = imitation.Episodes(
+        observation=np.arange(7.0)[:, None], action=np.arange(14.0).reshape(7, 2),
+        expert=np.array([1, 1, 0, 1, 1, 1, 0], bool), episode=np.array([0, 0, 1, 1, 2, 2, 2]),
+        success=np.array([False, True, True]))
+    kept = episodes.successful()
+    np.testing.assert_array_equal(kept.observation[:, 0], [2, 3, 4, 5, 6])
+    np.testing.assert_array_equal(kept.episode, [0, 0, 1, 1, 1])
+    np.testing.assert_array_equal(kept.success, [True, True])
+    np.testing.assert_array_equal(kept.labels[0][:, 0], [3, 4, 5])
+    nothing = dataclasses.replace(episodes, success=np.zeros(3, bool)).successful()
+    assert len(nothing.observation) == len(nothing.success) == 0
+
+
+def test_recipe_clones_only_successful_demonstrations_when_asked(tmp_path: Path,
+                                                                 capsys) -> None:
+    """TINY's 40-step demonstrations never reach a target: with ``successful_only`` the clone
+    has nothing to learn from, and says so instead of cloning the failures."""
+    out = tmp_path / "run"
+    assert _train(out, "--set", "clone.successful_only=true") == 2
+    assert "no demonstrations episode reached its target" in capsys.readouterr().err
+    assert [r["stage"] for r in _log(out)] == ["demonstrations"]
+    assert _log(out)[0]["successes"] == 0
 
 
 def test_clone_fits_each_group_of_labels() -> None:

@@ -82,6 +82,14 @@ class Episodes:
         """The expert's steps: their observations and actions."""
         return self.observation[self.expert], self.action[self.expert]
 
+    def successful(self) -> Episodes:
+        """Only the episodes that reached their target (indices renumbered from 0)."""
+        ids = np.unique(self.episode)  # sorted: the order of ``success``
+        keep = np.isin(self.episode, ids[self.success])
+        return Episodes(self.observation[keep], self.action[keep], self.expert[keep],
+                        np.searchsorted(ids[self.success], self.episode[keep]),
+                        self.success[self.success])
+
 
 class Takeover(TensorDictModuleBase):
     """Acts with ``actor`` and hands over to the probing expert's plan where it is stuck.
