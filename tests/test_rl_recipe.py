@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+import yaml
 
 from sim4endor import assets
 from sim4endor.cli import main
@@ -113,6 +114,17 @@ def test_recipe_refuses_a_folder_it_cannot_use(tmp_path: Path, capsys) -> None:
         recipe.RecipeRun(recipe.load_recipe("generalist", ["seed=2"]), run)
     # The number of workers changes only the speed: a run resumes on a bigger machine.
     recipe.RecipeRun(recipe.load_recipe("generalist", ["seed=1", "envs=16"]), run)
+
+
+def test_a_folder_from_before_a_new_recipe_field_resumes(tmp_path: Path) -> None:
+    """A field the folder's recipe.yaml lacks reads its default; one it differs in refuses."""
+    saved = recipe.recipe_dict(recipe.load_recipe("generalist"))
+    del saved["clone"]["successful_only"]
+    tmp_path.joinpath(recipe.RECIPE_FILE).write_text(yaml.safe_dump(saved))
+    recipe.RecipeRun(recipe.load_recipe("generalist"), tmp_path, progress=False)
+    with pytest.raises(recipe.RecipeError, match=r"differs in \['clone'\]"):
+        recipe.RecipeRun(recipe.load_recipe("generalist", ["clone.successful_only=true"]),
+                         tmp_path, progress=False)
 
 
 def test_recipe_refuses_flags_it_sets_itself(tmp_path: Path, capsys) -> None:

@@ -287,7 +287,9 @@ class RecipeRun:
         path = self.out / RECIPE_FILE
         wanted = recipe_dict(self.recipe)
         if path.is_file():
-            saved = yaml.safe_load(path.read_text())
+            # Through the dataclass: a field added since the folder was made reads its default.
+            saved = recipe_dict(merge_fields(RecipeConfig(), yaml.safe_load(path.read_text()),
+                                             str(path)))
             changed = sorted(k for k in wanted
                              if k not in _SCHEDULING and saved.get(k) != wanted[k])
             if changed:
