@@ -20,13 +20,15 @@ from sim4endor.rl.config import ConfigError, default_config
 from sim4endor.rl.runs import load_agent
 
 # Two demonstrations on the training trees and one on the wide ones, one takeover round;
-# short episodes and a few gradient steps.
+# short episodes and a few gradient steps. Episodes this short never reach a target, so the
+# clone takes every demonstration, failed ones included.
 TINY = [
     "--set", "demonstrations=[{domain: coronary, episodes: 2}, "
              "{domain: random_coronary, episodes: 1, pool_seed: 200, pool_size: 40}]",
     "--set", "takeovers=[{domain: coronary, episodes: 1}]",
     "--set", "rounds=1", "--set", "max_steps=40", "--set", "stall_steps=5",
-    "--set", "clone.steps=10", "--set", "chunk_episodes=1", "--envs", "1", "--no-progress",
+    "--set", "clone.steps=10", "--set", "clone.successful_only=false",
+    "--set", "chunk_episodes=1", "--envs", "1", "--no-progress",
 ]
 STAGES = ["demonstrations", "clone", "takeover_1", "finetune_1"]
 
@@ -118,13 +120,13 @@ def test_recipe_refuses_a_folder_it_cannot_use(tmp_path: Path, capsys) -> None:
 
 def test_a_folder_from_before_a_new_recipe_field_resumes(tmp_path: Path) -> None:
     """A field the folder's recipe.yaml lacks reads its default; one it differs in refuses."""
-    saved = recipe.recipe_dict(recipe.load_recipe("generalist"))
+    every = recipe.load_recipe("generalist", ["clone.successful_only=false"])  # the field's default
+    saved = recipe.recipe_dict(every)
     del saved["clone"]["successful_only"]
     tmp_path.joinpath(recipe.RECIPE_FILE).write_text(yaml.safe_dump(saved))
-    recipe.RecipeRun(recipe.load_recipe("generalist"), tmp_path, progress=False)
+    recipe.RecipeRun(every, tmp_path, progress=False)
     with pytest.raises(recipe.RecipeError, match=r"differs in \['clone'\]"):
-        recipe.RecipeRun(recipe.load_recipe("generalist", ["clone.successful_only=true"]),
-                         tmp_path, progress=False)
+        recipe.RecipeRun(recipe.load_recipe("generalist"), tmp_path, progress=False)
 
 
 def test_recipe_refuses_flags_it_sets_itself(tmp_path: Path, capsys) -> None:
