@@ -84,11 +84,10 @@ class Episodes:
 
     def successful(self) -> Episodes:
         """Only the episodes that reached their target (indices renumbered from 0)."""
-        ids = np.unique(self.episode)  # sorted: the order of ``success``
-        keep = np.isin(self.episode, ids[self.success])
+        reached = np.unique(self.episode)[self.success]  # sorted: the order of ``success``
+        keep = np.isin(self.episode, reached)
         return Episodes(self.observation[keep], self.action[keep], self.expert[keep],
-                        np.searchsorted(ids[self.success], self.episode[keep]),
-                        self.success[self.success])
+                        np.searchsorted(reached, self.episode[keep]), self.success[self.success])
 
 
 class Takeover(TensorDictModuleBase):

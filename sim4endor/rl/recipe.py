@@ -109,9 +109,8 @@ class CloneSettings:
         steps: gradient steps per cloning stage.
         batch: labelled steps per batch.
         lr: Adam's learning rate.
-        successful_only: clone only the demonstrations that reached their target (the plain
-            expert's failures are mostly timeouts, long stretches of dithering: 34-45 % of
-            the demonstrations' steps in 22-27 failed episodes of 160).
+        successful_only: clone only the demonstrations that reached their target (why: the
+            generalist's recipe.yaml).
     """
 
     steps: int = 4000
@@ -291,7 +290,7 @@ class RecipeRun:
             saved = recipe_dict(merge_fields(RecipeConfig(), yaml.safe_load(path.read_text()),
                                              str(path)))
             changed = sorted(k for k in wanted
-                             if k not in _SCHEDULING and saved.get(k) != wanted[k])
+                             if k not in _SCHEDULING and saved[k] != wanted[k])
             if changed:
                 raise RecipeError(
                     f"{self.out} holds a run of another recipe (differs in {changed}); resume "
