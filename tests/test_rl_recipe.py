@@ -15,7 +15,7 @@ import yaml
 
 from sim4endor import assets
 from sim4endor.cli import main
-from sim4endor.rl import imitation, recipe
+from sim4endor.rl import checkpoint, imitation, recipe
 from sim4endor.rl.config import ConfigError, default_config
 from sim4endor.rl.runs import load_agent
 
@@ -64,6 +64,14 @@ def test_recipe_runs_every_stage_and_writes_a_loadable_policy(tmp_path: Path, ca
     for policy, last in zip(_actor_weights(out / recipe.POLICY_DIR),
                             _actor_weights(out / "stages" / "finetune_1"), strict=True):
         assert torch.equal(policy, last)
+    # The policy's counters are the whole recipe's, as a SAC run's are its training's: every
+    # step of the episodes (the takeover's driven by the policy too), both cloning stages.
+    progress = checkpoint.load_progress(out / recipe.POLICY_DIR)
+    assert progress.episodes == demos["episodes"] + records[2]["episodes"]
+    assert demos["labels"] + records[2]["labels"] <= progress.frames <= 4 * 40
+    assert progress.updates == 2 * 10
+    assert progress.wall_clock_s == pytest.approx(summary["seconds"], rel=0.05, abs=0.5)
+    assert checkpoint.load_progress(out / "stages" / "clone").updates == 10
     # Rerunning a finished run does nothing more.
     assert _train(out) == 0
     assert len(_log(out)) == len(STAGES)

@@ -384,6 +384,7 @@ class RecipeRun:
     def _clone(self, stage: str, start: str | None) -> dict[str, Any]:
         """Clones every label collected so far into ``start``'s policy (None: a fresh one);
         writes the stage's run folder."""
+        began = time.monotonic()
         recipe = self.recipe
         torch.manual_seed(recipe.seed)
         groups = [self._labels("demonstrations", successful_only=recipe.clone.successful_only)]
@@ -395,8 +396,23 @@ class RecipeRun:
                                 seed=recipe.seed, progress=self.progress, desc=stage)
         with atomic_directory(self.out / "stages" / stage) as staging:
             save_config(self._config, staging / CONFIG_FILE)
-            checkpoint.save_checkpoint(staging, agent, checkpoint.Progress(), None)
+            checkpoint.save_checkpoint(staging, agent,
+                                       self._progress(time.monotonic() - began), None)
         return {"labels": [len(label) for _, label in groups], "squared_error": round(error, 4)}
+
+    def _progress(self, seconds: float) -> checkpoint.Progress:
+        """The run's counters at the end of a cloning stage that took ``seconds``, saved in its
+        checkpoint so that evaluations and tables report a recipe policy's cost as they do a
+        SAC run's: every step and episode collected so far, every cloning step so far, and the
+        seconds of every stage so far."""
+        done = self._done()
+        data = [imitation.Episodes.load(path) for path in (self.out / "data").glob("*.npz")]
+        clones = 1 + sum(name == "clone" or name.startswith("finetune_") for name in done)
+        return checkpoint.Progress(
+            frames=sum(len(chunk.episode) for chunk in data),
+            episodes=sum(len(chunk.success) for chunk in data),
+            updates=clones * self.recipe.clone.steps,
+            wall_clock_s=sum(record["seconds"] for record in done.values()) + seconds)
 
     @property
     def _config(self) -> TrainConfig:
