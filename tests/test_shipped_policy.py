@@ -3,6 +3,8 @@ acting on an anatomy it was not trained on."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -23,6 +25,18 @@ def test_the_generalist_is_shipped_small_and_loads_weights_only() -> None:
     torch.load(state, weights_only=True)  # tensors and plain data only: no pickled code
     assert run_config(folder).env.observations == "generalist_stall"
     assert (folder / "MODEL_CARD.md").is_file()
+
+
+def test_the_generalist_is_its_recipes_policy() -> None:
+    """The shipped weights are `sim4endor train generalist`'s: the policy settings are its
+    recipe's, on the seed its model card's command names."""
+    from sim4endor.rl.recipe import load_recipe
+
+    folder = assets.run_or_policy("generalist")
+    shipped = run_config(folder)
+    assert dataclasses.replace(load_recipe("generalist").policy, seed=shipped.seed) == shipped
+    card = (folder / "MODEL_CARD.md").read_text()
+    assert f"sim4endor train generalist --seed {shipped.seed} --out" in card
 
 
 def _phantom() -> EnvConfig:
@@ -46,8 +60,8 @@ def test_the_generalist_acts_on_a_phantom_it_never_saw() -> None:
 
 
 def test_the_generalist_exports_with_its_shaped_tip_in_the_contract(tmp_path) -> None:
-    """policy.json names the wire as plain data the catalogue rebuilds: 2 mm bent 60 deg, a
-    secondary curve 7 mm from the end bent 40 deg."""
+    """policy.json names the wire as plain data the catalogue rebuilds: 3 mm bent 75 deg, a
+    secondary curve 5 mm from the end bent 50 deg (the recipe's tip, recipe.yaml)."""
     import json
     import math
 
@@ -61,8 +75,8 @@ def test_the_generalist_exports_with_its_shaped_tip_in_the_contract(tmp_path) ->
     assert [path.name for path in paths] == ["policy.pt", "policy.json"]
     contract = json.loads(paths[1].read_text())
     wire = wires.resolve(contract["environment"]["task_kwargs"]["wire"])
-    assert wire.tip_length == pytest.approx(0.002)
-    assert wire.tip_angle == pytest.approx(math.radians(60.0))
-    assert wire.secondary_distance == pytest.approx(0.007)
-    assert wire.secondary_angle == pytest.approx(math.radians(40.0))
+    assert wire.tip_length == pytest.approx(0.003)
+    assert wire.tip_angle == pytest.approx(math.radians(75.0))
+    assert wire.secondary_distance == pytest.approx(0.005)
+    assert wire.secondary_angle == pytest.approx(math.radians(50.0))
     assert contract["observation"]["shape"][-1] == 36  # generalist_no_radius and stall_time
