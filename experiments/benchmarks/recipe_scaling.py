@@ -19,7 +19,6 @@ import torch and MuJoCo: a few seconds each) or Ray.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import tempfile
 from collections.abc import Sequence
@@ -27,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from sim4endor import _json as strict_json
-from sim4endor.rl.recipe import LOG_FILE, RecipeRun, load_recipe
+from sim4endor.rl.recipe import RecipeRun, load_recipe
 
 
 def stage_seconds(episodes: int, chunk: int, envs: int, backend: str, address: str | None,
@@ -39,10 +38,9 @@ def stage_seconds(episodes: int, chunk: int, envs: int, backend: str, address: s
         "rounds=0", "clone.steps=1", "clone.successful_only=false",
         f"chunk_episodes={chunk}", f"envs={envs}", *overrides])
     with tempfile.TemporaryDirectory() as scratch:
-        out = Path(scratch) / "run"
-        RecipeRun(recipe, out, progress=False, backend=backend, ray_address=address).run()
-        records = [json.loads(line) for line in (out / LOG_FILE).read_text().splitlines()]
-    return float(next(r["seconds"] for r in records if r["stage"] == "demonstrations"))
+        summary = RecipeRun(recipe, Path(scratch) / "run", progress=False, backend=backend,
+                            ray_address=address).run()
+    return float(next(r["seconds"] for r in summary["stages"] if r["stage"] == "demonstrations"))
 
 
 def main() -> None:
@@ -73,13 +71,14 @@ def main() -> None:
     for run in runs:
         run["episodes_per_s"] = round(args.episodes / run["seconds"], 3)
         run["speed_up"] = None if one is None else round(one / run["seconds"], 2)
+    load = os.getloadavg()
     report = {"episodes": args.episodes, "chunk_episodes": args.chunk_episodes,
-              "cpus": os.cpu_count(), "load_average": os.getloadavg(), "runs": runs}
+              "cpus": os.cpu_count(), "load_average": load, "runs": runs}
     if args.json:
         print(strict_json.dumps(report))
         return
     print(f"demonstrations stage, {args.episodes} coronary episodes in chunks of "
-          f"{args.chunk_episodes}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}")
+          f"{args.chunk_episodes}, {os.cpu_count()} CPUs, load {load[0]:.1f}")
     for run in runs:
         workers = "ray" if run["backend"] == "ray" else f"--envs {run['envs']}"
         speed_up = "" if run["speed_up"] is None else f", x{run['speed_up']:.2f}"
