@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -54,6 +55,16 @@ def test_onnx_policy_matches_the_actor(tmp_path: Path) -> None:
     expected = _reference(run_dir, observation).numpy()
     assert action.shape == expected.shape
     assert abs(action - expected).max() < 1e-5
+    # One self-contained file: nothing hidden beside it (a temp-named weights file was, until
+    # 2026-12-06), so a plain copy of the folder's files runs on the robot's computer.
+    export = tmp_path / "export"
+    assert sorted(p.name for p in export.iterdir()) == ["policy.json", "policy.onnx", "policy.pt"]
+    robot = tmp_path / "robot"
+    robot.mkdir()
+    shutil.copy(export / "policy.onnx", robot / "policy.onnx")
+    (copied,) = ReferenceEvaluator(str(robot / "policy.onnx")).run(
+        None, {"observation": observation.numpy()})
+    assert (copied == action).all()
 
 
 ROBOT_SCRIPT = Path(__file__).resolve().parents[1] / "experiments/export/run_onnx_policy.py"

@@ -17,6 +17,7 @@ PPO: the tanh-normal's deterministic sample), exactly what ``sim4endor evaluate`
 from __future__ import annotations
 
 import json
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -210,14 +211,14 @@ def _observation_layout(names: tuple[str, ...], obs_dim: int) -> list[dict[str, 
 
 
 def _export_onnx(policy: nn.Module, example: torch.Tensor, path: Path) -> Path:
+    """Writes ``policy`` as one self-contained ONNX file at ``path`` (atomically)."""
     try:
-        import onnx  # noqa: F401
+        import onnx
     except ImportError as exc:
         raise Sim4EndoRError(
             "ONNX export needs the onnx extra: pip install 'sim4endor[onnx]'; "
             "the TorchScript policy.pt was written."
         ) from exc
-    staging = path.with_name(f".{path.name}.tmp")  # never a half-written policy.onnx
     batch: dict[str, Any]
     if isinstance(policy, torch.jit.ScriptModule):
         # A loaded TorchScript program (a re-export) only converts with the TorchScript-based
@@ -227,7 +228,13 @@ def _export_onnx(policy: nn.Module, example: torch.Tensor, path: Path) -> Path:
     else:
         # verbose=False: the exporter's progress lines would mix into the CLI's output.
         batch = {"dynamic_shapes": ({0: torch.export.Dim("batch")},), "verbose": False}
-    torch.onnx.export(policy, (example,), str(staging), input_names=["observation"],
-                      output_names=["action"], **batch)
-    staging.replace(path)
+    # The exporter may keep the weights in a file beside its output, named after it; staged
+    # in a folder of its own, loaded back with them and written as one file, the exported
+    # policy.onnx is all a robot needs (a copy of policy.onnx alone runs).
+    with tempfile.TemporaryDirectory(prefix=f".{path.name}.", dir=path.parent) as staging:
+        staged = Path(staging) / path.name
+        torch.onnx.export(policy, (example,), str(staged), input_names=["observation"],
+                          output_names=["action"], **batch)
+        model = onnx.load(str(staged), load_external_data=True)
+    atomic_write_bytes(path, model.SerializeToString())
     return path
