@@ -15,7 +15,14 @@ import pytest
 from sim4endor import suite
 from sim4endor.models import wires
 from sim4endor.models.guidewire import GuidewireConfig, segment_lengths
-from sim4endor.models.scene import SOFT_TIP_FILL, SceneConfig, SceneError, fit_segments
+from sim4endor.models.scene import (
+    SOFT_TIP_FILL,
+    SceneConfig,
+    SceneError,
+    config_for_vessel,
+    fit_segments,
+    fit_segments_to_vessel,
+)
 from sim4endor.tasks import TaskConfigError, coronary
 from sim4endor.tasks.anatomy import AnatomyPool
 from sim4endor.vessels.generators.coronary_arteries import (
@@ -289,7 +296,7 @@ def test_the_coronary_scene_keeps_tips_shaped_for_the_proximal_arteries_and_narr
     assert room - 1e-5 < narrowed.tip_lateral_offset <= room + 1e-9
 
 
-def test_the_coronary_scene_cuts_the_shaft_segments_to_lie_in_the_tightest_bend() -> None:
+def test_a_same_wire_pool_cuts_the_shaft_segments_to_lie_in_the_tightest_bend() -> None:
     generator = CoronaryArteriesConfig()
     lumen = 0.5 * generator.min_diameter
     bend = lumen / generator.max_curvature_ratio
@@ -300,13 +307,35 @@ def test_the_coronary_scene_cuts_the_shaft_segments_to_lie_in_the_tightest_bend(
         return float(segment_lengths(wire).max()) ** 2 / (8 * bend)
 
     assert sagitta(workhorse) > room  # the catalogue's 5 mm segments cannot lie in it
-    fitted = coronary.scene_for(None).wire
+    # Each tree of a pool fits its own segments (test_each_tree_cuts_...); a pool whose trees
+    # share one wire cuts them for the tightest bend the generator draws.
+    assert coronary.scene_for(None).wire.max_segment_length == workhorse.max_segment_length
+    fitted = coronary.scene_for(None, same_wire=True).wire
     assert sagitta(fitted) <= 0.75 * room + 1e-12
     assert fitted.max_segment_length == pytest.approx(math.sqrt(8 * bend * 0.75 * room))
     short = dataclasses.replace(workhorse, max_segment_length=1e-3)
     assert fit_segments(short, bend, lumen) is short  # already short enough: kept
     with pytest.raises(SceneError, match="not wider than the wire"):
         fit_segments(workhorse, bend, workhorse.radius)
+
+
+def test_each_tree_cuts_only_the_wire_that_can_reach_its_tight_bends(tmp_path: Path) -> None:
+    env = suite.load("coronary", "navigate", {"pool_seed": 1, "pool_size": 1, "random": 0,
+                                               "cache_dir": tmp_path})
+    anatomy = env.task.anatomy
+    wire = config_for_vessel(anatomy.vessel, coronary.scene_for(None)).wire
+    lengths = segment_lengths(wire)[::-1]  # tip first
+    shaft = lengths[wire.tip_segments:]
+    # The tip's side is cut as a wire fitted to the whole tree; the proximal wire, which only
+    # reaches the wider proximal vessels, keeps longer segments: fewer in all (57 against 67
+    # on this tree).
+    whole = fit_segments_to_vessel(wire, anatomy.vessel.centerline)
+    assert shaft[:10].max() <= whole.max_segment_length + 1e-9
+    assert shaft.max() > 1.3 * whole.max_segment_length
+    assert env.physics.num_wire_segments() == len(lengths)
+    assert len(lengths) < dataclasses.replace(wire, segment_limits=None,
+                                              max_segment_length=whole.max_segment_length
+                                              ).num_segments
 
 
 def _fake_pool(**kwargs: object) -> AnatomyPool:

@@ -15,7 +15,7 @@ from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
 from sim4endor.models import scene, wires
 from sim4endor.models.driver import DriverConfig, add_driver
-from sim4endor.models.guidewire import GuidewireConfig
+from sim4endor.models.guidewire import GuidewireConfig, segment_lengths
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.vessels import Vessel
 from sim4endor.vessels.centerline import CenterlineGraph
@@ -177,17 +177,41 @@ def test_shaft_segments_are_cut_to_lie_in_the_tightest_bend_of_a_centerline() ->
     workhorse = wires.preset("workhorse")
     bend, lumen = 0.002, 0.00075  # a narrow branch's tight bend, as in a coronary tree
     room = 0.75 * (lumen - workhorse.radius)
-    fitted = scene.fit_segments_to_centerline(workhorse, _arc_graph(bend, lumen))
+    fitted = scene.fit_segments_to_vessel(workhorse, _arc_graph(bend, lumen))
     # A chord of length l in an arc of radius R strays R - sqrt(R^2 - l^2 / 4) from it.
     exact = 2 * math.sqrt(bend**2 - (bend - room) ** 2)
     assert fitted.max_segment_length == pytest.approx(exact, rel=0.03)
     assert fitted.max_segment_length < workhorse.max_segment_length
     # Gentle or wide: the wire's own segments already fit, and the wire is returned as is.
     for graph in (_arc_graph(0.05, lumen), _arc_graph(0.006, 0.002)):
-        assert scene.fit_segments_to_centerline(workhorse, graph) is workhorse
+        assert scene.fit_segments_to_vessel(workhorse, graph) is workhorse
     # A lumen narrower than the wire (a stenosis it does not pass) is not measured.
-    assert scene.fit_segments_to_centerline(
+    assert scene.fit_segments_to_vessel(
         workhorse, _arc_graph(bend, 0.5 * workhorse.radius)) is workhorse
+
+
+def test_only_the_wire_that_can_reach_a_tight_bend_is_cut_for_it() -> None:
+    workhorse = wires.preset("workhorse")
+    bend, lumen = 0.002, 0.00075
+    graph = _arc_graph(bend, lumen)  # the bend runs from 10 mm to 16.3 mm along the axis
+    graph = CenterlineGraph(graph.nodes, graph.radii, graph.edges, labels={"inlet": 0})
+    whole = scene.fit_segments_to_vessel(workhorse, graph)
+    reach = 0.05
+    graded = scene.fit_segments_to_vessel(workhorse, graph, reach=reach)
+    assert graded.max_segment_length == workhorse.max_segment_length
+    assert graded.segment_limits[0] == (0.0, pytest.approx(whole.max_segment_length, rel=1e-3))
+    lengths = segment_lengths(graded)[::-1]  # tip first
+    from_tip = np.cumsum(lengths) - lengths  # each segment's distal end
+    # Whatever can get into the bend (up to 50 - 10 mm from the tip) is as short as the whole
+    # wire fitted to it; what never leaves the sheath is split evenly into segments of at
+    # most the preset's 5 mm.
+    deep = from_tip <= reach - 0.01
+    assert lengths[deep].max() <= whole.max_segment_length + 1e-9
+    proximal = lengths[from_tip > reach]
+    assert proximal.max() <= workhorse.max_segment_length + 1e-9
+    assert proximal.min() > 1.5 * whole.max_segment_length
+    assert graded.num_segments < whole.num_segments
+    assert lengths.sum() == pytest.approx(workhorse.length)
 
 
 def _junction_graph(parent: float, branch: float, flare: float = 1.5,
@@ -212,21 +236,20 @@ def _junction_graph(parent: float, branch: float, flare: float = 1.5,
 def test_shaft_segments_are_cut_to_turn_into_a_narrow_branch() -> None:
     workhorse = wires.preset("workhorse")
     narrow = _junction_graph(0.00085, 0.00085)  # issue 15's sub-branch calibre
-    # Straight branches: nothing to fit within them.
-    assert scene.fit_segments_to_centerline(workhorse, narrow) is workhorse
-    fitted = scene.fit_segments_to_junctions(workhorse, narrow)
+    # Straight branches: nothing to fit within them, but the turn into one.
+    fitted = scene.fit_segments_to_vessel(workhorse, narrow)
     bend = scene.JUNCTION_BEND_RADII * 0.00085
     expected = math.sqrt(8 * bend * 0.75 * (0.00085 - workhorse.radius))
     # The branch's radius, read past the junction's flare (1.5 x the parent's at the node).
     assert fitted.max_segment_length == pytest.approx(expected)
     assert 0.0025 < fitted.max_segment_length < 0.003
     # The narrower of the two vessels meeting decides.
-    assert scene.fit_segments_to_junctions(
+    assert scene.fit_segments_to_vessel(
         workhorse, _junction_graph(0.002, 0.00085)).max_segment_length == pytest.approx(expected)
     # Wide vessels (the phantoms' 2 mm) keep the wire's 5 mm; a branch no wider than the wire
     # (a stenosis it does not pass) is not measured.
-    assert scene.fit_segments_to_junctions(workhorse, _junction_graph(0.002, 0.0016)) is workhorse
-    assert scene.fit_segments_to_junctions(
+    assert scene.fit_segments_to_vessel(workhorse, _junction_graph(0.002, 0.0016)) is workhorse
+    assert scene.fit_segments_to_vessel(
         workhorse, _junction_graph(0.002, 0.5 * workhorse.radius)) is workhorse
 
 
@@ -238,3 +261,4 @@ def test_config_for_vessel_keeps_the_phantoms_segments() -> None:
         for wire in (GuidewireConfig(), wires.preset("workhorse")):
             fitted = scene.config_for_vessel(vessel, scene.SceneConfig(wire=wire)).wire
             assert fitted.max_segment_length == wire.max_segment_length, name
+            assert fitted.segment_limits is None, name

@@ -105,6 +105,12 @@ class GuidewireConfig:
         mass_scale: Quasi-static mass-scaling factor applied to ``density`` (see module doc).
         tip_segments: Number of (equal) segments along the pre-bent tip.
         max_segment_length: Longest shaft segment (m).
+        segment_limits: Optional shorter limits along the shaft: ``((s, l), ...)`` pairs of
+            distance from the distal tip ``s`` (m, strictly increasing, starting at 0) and
+            longest segment ``l`` (m) from there to the next pair (``max_segment_length``
+            caps them all). ``None`` (default): ``max_segment_length`` everywhere. A scene
+            sets them so that only the wire that can reach a tight bend is cut short
+            (:func:`sim4endor.models.scene.fit_segments_to_vessel`).
         segment_growth: Ratio between consecutive segment lengths from tip to shaft (>= 1).
         damping_time: Ball-joint damping as a time constant (s): each joint's damping is
             ``damping_time`` times its bending stiffness ``E·I/l`` (N·m/rad), so short tip
@@ -142,6 +148,13 @@ class GuidewireConfig:
             published model); 0 collides at the jacket's true radius, which overlapped the
             hulls by up to 0.8 wire radii at the driver's push (docs/guidewire.md, "Contact
             at the true radius").
+        contact_solimp: MuJoCo impedance (``solimp``: dmin, dmax, width m, midpoint, power)
+            of the wire's contacts, or ``None`` (default) for the wire class's
+            (``mjcf/guidewire_defaults.xml``: 0.99, 0.999, 0.1 mm, 0.5, 2). The wire's geoms
+            have priority, so it is every wire contact's. A softer start (dmin 0.9) lets a
+            loaded contact settle inside the margin instead of flickering at its edge, where a
+            light wire's segment, freed for one step, is thrown through the wall
+            (docs/guidewire.md, "Converged by default"). Numerical, like ``integrator``.
         core_profile: Optional tapered core: ``((s, d), ...)`` pairs of distance from the
             distal tip ``s`` (m, strictly increasing, starting at 0) and core diameter ``d``
             (m), linear in between and constant beyond the last pair. ``None`` (default)
@@ -167,6 +180,7 @@ class GuidewireConfig:
     mass_scale: float = 1e4
     tip_segments: int = 5
     max_segment_length: float = 0.005
+    segment_limits: tuple[tuple[float, float], ...] | None = None
     segment_growth: float = 1.5
     damping_time: float = 0.025
     armature_time: float = 0.015
@@ -175,6 +189,7 @@ class GuidewireConfig:
     friction_cone: str | None = None
     integrator: str | None = None
     contact_margin: float = 1e-4
+    contact_solimp: tuple[float, float, float, float, float] | None = None
     core_profile: tuple[tuple[float, float], ...] | None = None
 
     def __post_init__(self) -> None:
@@ -249,6 +264,10 @@ class GuidewireConfig:
                 f"GuidewireConfig.integrator must be one of {list(INTEGRATORS)} or None, "
                 f"got {self.integrator!r}."
             )
+        if self.contact_solimp is not None:
+            _check_solimp(self.contact_solimp)
+        if self.segment_limits is not None:
+            _check_segment_limits(self.segment_limits)
         if self.core_profile is not None:
             _check_core_profile(self.core_profile, self.outer_diameter)
 
@@ -298,6 +317,34 @@ class GuidewireConfig:
     def num_segments(self) -> int:
         """Number of rigid segments (bodies) of the discretised wire."""
         return len(segment_lengths(self))
+
+
+def _check_solimp(solimp: tuple[float, ...]) -> None:
+    try:
+        dmin, dmax, width, midpoint, power = (float(value) for value in solimp)
+    except (TypeError, ValueError):
+        dmin = dmax = width = midpoint = power = math.nan
+    if not (0 < dmin <= dmax < 1 and width > 0 and 0 < midpoint < 1 and power >= 1):
+        raise GuidewireConfigError(
+            "GuidewireConfig.contact_solimp must be MuJoCo's (dmin, dmax, width m, midpoint, "
+            f"power) with 0 < dmin <= dmax < 1, width > 0, 0 < midpoint < 1 and power >= 1, "
+            f"got {solimp!r}."
+        )
+
+
+def _check_segment_limits(limits: tuple[tuple[float, float], ...]) -> None:
+    try:
+        points = np.array(limits, dtype=np.float64)
+    except (TypeError, ValueError):
+        points = np.zeros((0, 0))
+    if not (points.ndim == 2 and points.shape[1] == 2 and len(points) >= 1
+            and np.all(np.isfinite(points)) and points[0, 0] == 0.0
+            and np.all(np.diff(points[:, 0]) > 0) and np.all(points[:, 1] > 0)):
+        raise GuidewireConfigError(
+            "GuidewireConfig.segment_limits must be (distance from tip m, longest segment m) "
+            "pairs with distances starting at 0 and increasing strictly and lengths > 0, got "
+            f"{limits!r}."
+        )
 
 
 def _check_core_profile(profile: tuple[tuple[float, float], ...], outer: float) -> None:
@@ -350,20 +397,41 @@ def segment_lengths(config: GuidewireConfig) -> NDArray[np.float64]:
     """Returns the segment lengths (m), proximal first.
 
     The tip has ``tip_segments`` equal segments; going proximally, each shaft segment is
-    ``segment_growth`` times the previous one until ``max_segment_length``; the remaining
-    shaft is split into equal segments no longer than that.
+    ``segment_growth`` times the previous one until the longest allowed there
+    (``max_segment_length``, or ``segment_limits``'); the remaining shaft is split into
+    equal segments no longer than that, zone by zone of ``segment_limits``. A zone shorter
+    than its limit joins the next one under the shorter of their limits, so that no segment
+    is cut short at a zone's border.
     """
     tip = config.tip_length / config.tip_segments
-    remaining = config.length - config.tip_length
-    graded: list[float] = []
+    distal: list[float] = []  # shaft segments, tip side first
+    start = config.tip_length  # distance from the tip where the next segment starts
     step = tip * config.segment_growth
-    while step < config.max_segment_length and step < remaining - sum(graded):
-        graded.append(step)
+    while step < _longest_segment(config, start) and step < config.length - start:
+        distal.append(step)
+        start += step
         step *= config.segment_growth
-    rest = remaining - sum(graded)
-    count = max(1, math.ceil(rest / config.max_segment_length - 1e-9))
-    shaft = [rest / count] * count + graded[::-1]
-    return np.array(shaft + [tip] * config.tip_segments)
+    borders = [s for s, _ in config.segment_limits or () if start < s < config.length]
+    zone_start, cap = start, _longest_segment(config, start)
+    for zone_end in [*borders, config.length]:
+        if zone_end - zone_start < cap and zone_end < config.length:
+            cap = min(cap, _longest_segment(config, zone_end))
+            continue  # too short for a segment of its own: it joins the next zone
+        count = max(1, math.ceil((zone_end - zone_start) / cap - 1e-9))
+        distal += [(zone_end - zone_start) / count] * count
+        zone_start = zone_end
+        cap = _longest_segment(config, zone_end)
+    return np.array(distal[::-1] + [tip] * config.tip_segments)
+
+
+def _longest_segment(config: GuidewireConfig, from_tip: float) -> float:
+    """The longest shaft segment (m) allowed from ``from_tip`` (m from the distal end) on."""
+    longest = config.max_segment_length
+    for start, limit in config.segment_limits or ():
+        if start > from_tip + 1e-12:
+            break
+        longest = min(config.max_segment_length, limit)
+    return longest
 
 
 def wire_vertices(config: GuidewireConfig) -> NDArray[np.float64]:
@@ -620,7 +688,7 @@ class _Segments:
                     armature=self.joint_stiffness[index] * config.armature_time**2,
                 )
             self._core(spec, body, index)
-            body.add_geom(
+            geom = body.add_geom(
                 wire_default,
                 name=names.wire_geom(index),
                 type=mujoco.mjtGeom.mjGEOM_CAPSULE,
@@ -630,6 +698,8 @@ class _Segments:
                 friction=[config.friction, 0.005, 0.0001],
                 margin=config.contact_margin,
             )
+            if config.contact_solimp is not None:
+                geom.solimp = config.contact_solimp
             _join_plugin(body, plugin)
         return body
 

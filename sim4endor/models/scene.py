@@ -22,6 +22,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from numpy.typing import NDArray
 
 from sim4endor import assets
 from sim4endor.errors import Sim4EndoRError
@@ -62,7 +63,7 @@ SOFT_TIP_FILL = 6.0
 
 
 #: How tight a turn into a branch is taken to be, in radii of the narrowest vessel meeting at
-#: the junction (:func:`fit_segments_to_junctions`): the tightest bend a swept tube keeps its
+#: the junction (:func:`segment_limits`): the tightest bend a swept tube keeps its
 #: lumen through, as the coronary generator caps its bends (``max_curvature_ratio`` 0.4) and
 #: the ``coronary`` domain sizes its segments for its narrowest branch.
 JUNCTION_BEND_RADII = 2.5
@@ -110,9 +111,9 @@ def config_for_vessel(
     targets of generated coronary trees built as vessel folders (docs/tasks/coronary.md,
     Measured).
 
-    The shaft segments are cut until each lies in every bend of the centerline
-    (:func:`fit_segments_to_centerline`) and in the turn into every branch
-    (:func:`fit_segments_to_junctions`); the shipped phantoms keep the wire's 5 mm.
+    The shaft segments are cut until each lies in every bend of the centerline and in the
+    turn into every branch that it can reach (:func:`fit_segments_to_vessel`); the shipped
+    phantoms keep the wire's 5 mm.
     """
     scene = fit_travel(vessel, base, margin)
     if scene.wire.core_profile is None:
@@ -120,9 +121,14 @@ def config_for_vessel(
     else:
         wire = fit_tip(scene.wire, vessel.manifest.inlet.radius, SOFT_TIP_FILL,
                        f"{vessel.name}'s inlet")
-    wire = fit_segments_to_junctions(fit_segments_to_centerline(wire, vessel.centerline),
-                                     vessel.centerline)
+    wire = fit_segments_to_vessel(wire, vessel.centerline, tip_reach(scene.driver))
     return dataclasses.replace(scene, wire=wire)
+
+
+def tip_reach(driver: DriverConfig) -> float:
+    """How far along the centerline from the inlet the wire's tip can get (m): the sheath's
+    reach into the vessel, the protrusion beyond it and the driver's whole travel."""
+    return driver.sheath_overlap + driver.initial_protrusion + driver.max_insertion
 
 
 def fit_travel(vessel: Vessel, base: SceneConfig | None = None, margin: float = 0.01
@@ -191,97 +197,131 @@ def fit_segments(wire: GuidewireConfig, bend_radius: float, lumen_radius: float,
     return dataclasses.replace(wire, max_segment_length=longest)
 
 
-def fit_segments_to_centerline(wire: GuidewireConfig, graph: CenterlineGraph,
-                                fill: float = 0.75, precision: float = 1e-5) -> GuidewireConfig:
-    """Returns ``wire`` with its shaft segments short enough to lie in every bend of ``graph``.
+def segment_limits(wire: GuidewireConfig, graph: CenterlineGraph, fill: float = 0.75,
+                   precision: float = 1e-5) -> NDArray[np.float64]:
+    """The longest shaft segment (m) that can lie at each node of ``graph``, up to ``wire``'s
+    ``max_segment_length``: within the bends of the node's branch and, at a junction, in the
+    turn into every branch.
 
-    :func:`fit_segments`'s rule, measured on the centerline itself instead of a bound on its
-    bends: a straight segment of length l laid as a chord from any node along its branch must
-    stay within ``fill`` x (the narrowest lumen radius under it − wire radius) of the
+    **Bends.** A straight segment of length l laid as a chord from any node along its branch
+    must stay within ``fill`` x (the narrowest lumen radius under it - wire radius) of the
     centerline between the chord's ends. A user's folder says nothing of its tightest bend, and
     a segment longer than that jams there: in a vessel folder of a generated coronary tree
     (1.5 mm acute marginal, bends of 2.6 lumen radii), 5 mm segments stopped the wire 2.6-3.3
     mm short of the branch's end at the driver's 0.5 N push limit with 0.04-0.06 N on the tip
     (docs/tasks/coronary.md, 2026-11-29). Chords end at junctions: a wire crossing one runs
-    through the parent's wider lumen. A chord over a lumen no wider than the wire (a
-    stenosis the wire does not pass) is not measured. The longest length that fits is found
-    by bisection to ``precision`` (m).
+    through the parent's wider lumen. A chord over a lumen no wider than the wire (a stenosis
+    the wire does not pass) is not measured. Each chord's longest fitting length is found by
+    bisection to ``precision`` (m) and holds for every node it spans.
+
+    **Junctions.** A centerline turns into a branch at a node, so the chords, which stay
+    within branches, cannot see how tight the turn is; and a chord measured across the
+    junction's node lies on the kink, missing the lumen's flare, and would allow only 1.1-2.5
+    mm where 2.5 mm segments pass. The junction node takes :func:`fit_segments`'s rule with
+    the turn as a bend of :data:`JUNCTION_BEND_RADII` radii of the narrowest vessel meeting
+    there, read one junction radius from the junction, past the flare. Where two 0.85 mm
+    vessels meet at 85° (a tree of issue 15's calibre, ``coronary_tree`` seed 3103), 5 mm
+    segments jammed across the junction at the driver's 0.5 N push limit with 0.01 N on the
+    tip; with this rule's 2.93 mm the probing expert reached all 64 episodes of eight such
+    trees, against 60 (docs/tasks/coronary.md, 2026-11-29, evening, and 2026-12-01). With a
+    0.014 in wire, vessels of 1.4 mm radius or more (the shipped phantoms) keep a 5 mm segment.
     """
     longest = wire.max_segment_length
+    limits = np.full(graph.num_nodes, longest)
     for chain in branch_chains(graph):
         points = graph.nodes[chain]
         rooms = fill * (graph.radii[chain] - wire.radius)
         arc = arc_lengths(points)
-        if _chords_fit(points, rooms, arc, longest):
-            continue
-        low, high = 0.0, longest
-        while high - low > precision:
-            middle = 0.5 * (low + high)
-            low, high = (middle, high) if _chords_fit(points, rooms, arc, middle) else (low, middle)
-        longest = low
-    if longest >= wire.max_segment_length:
-        return wire
-    return dataclasses.replace(wire, max_segment_length=longest)
-
-
-def fit_segments_to_junctions(wire: GuidewireConfig, graph: CenterlineGraph,
-                              fill: float = 0.75) -> GuidewireConfig:
-    """Returns ``wire`` with its shaft segments short enough to turn into every branch of
-    ``graph``: :func:`fit_segments` with each junction taken as a bend of
-    :data:`JUNCTION_BEND_RADII` radii of the narrowest vessel meeting there.
-
-    A centerline turns into a branch at a node, so :func:`fit_segments_to_centerline`, which
-    measures chords within branches, cannot see how tight the turn is; and a chord measured
-    across the junction's node lies on the kink, missing the lumen's flare, and would allow
-    only 1.1-2.5 mm where 2.5 mm segments pass. Where two 0.85 mm vessels meet at 85°
-    (a tree of issue 15's calibre, ``coronary_tree`` seed 3103), 5 mm segments jammed across
-    the junction at the driver's 0.5 N push limit with 0.01 N on the tip; with this rule's
-    2.93 mm the probing expert reached all 64 episodes of eight such trees, against 60
-    (docs/tasks/coronary.md, 2026-11-29, evening, and 2026-12-01). With a 0.014 in wire,
-    vessels of 1.4 mm radius or more (the shipped phantoms) keep a 5 mm segment. Each
-    vessel's radius is read one junction radius from the junction, past the flare; one no
-    wider than the wire (a stenosis the wire does not pass) is not measured.
-    """
+        for start in range(len(chain)):
+            fits, span = _chord_fits(points, rooms, arc, start, longest)
+            if fits:
+                continue
+            low, high = 0.0, longest
+            while high - low > precision:
+                middle = 0.5 * (low + high)
+                fits, _ = _chord_fits(points, rooms, arc, start, middle)
+                low, high = (middle, high) if fits else (low, middle)
+            spanned = np.asarray(chain[start:span + 1])
+            limits[spanned] = np.minimum(limits[spanned], low)
     degrees = graph.degrees()
-    narrowest = math.inf
     for chain in branch_chains(graph):
         for end in (chain, chain[::-1]):
             if degrees[end[0]] < 3:
                 continue
-            points = graph.nodes[end]
-            arc = arc_lengths(points)
+            arc = arc_lengths(graph.nodes[end])
             past_flare = min(int(np.searchsorted(arc, graph.radii[end[0]])), len(end) - 1)
             radius = float(graph.radii[end[past_flare]])
             if radius > wire.radius:
-                narrowest = min(narrowest, radius)
-    if math.isinf(narrowest):
+                turn = fit_segments(wire, JUNCTION_BEND_RADII * radius, radius, fill)
+                limits[end[0]] = min(limits[end[0]], turn.max_segment_length)
+    return limits
+
+
+def fit_segments_to_vessel(wire: GuidewireConfig, graph: CenterlineGraph,
+                           reach: float | None = None, fill: float = 0.75,
+                           step: float = 0.02) -> GuidewireConfig:
+    """Returns ``wire`` with shaft segments short enough for every bend and junction of
+    ``graph`` that they can reach (:func:`segment_limits`).
+
+    Without ``reach`` every segment is cut to the tightest place of the whole tree (the wire's
+    ``max_segment_length``). With it, the tip's deepest reach along the centerline from the
+    inlet (m), a point of the wire ``s`` from the tip can lie no deeper than ``reach - s``: the
+    proximal wire only ever lies in the proximal vessels, which are wider, so its segments
+    may be longer (``GuidewireConfig.segment_limits``): on eight generated coronary trees
+    43-57 segments instead of 54-71, the same cut as before wherever the tip can go. The
+    limits keep a new value only where it is at least ``step`` (relative) longer than the
+    last one kept, so that the wire takes a few zones, not one per node.
+    """
+    limits = segment_limits(wire, graph, fill)
+    if reach is None:
+        shortest = float(limits.min())
+        if shortest >= wire.max_segment_length:
+            return wire
+        return dataclasses.replace(wire, max_segment_length=shortest)
+    depth = graph.geodesic_from(graph.labels[INLET_LABEL])
+    order = np.argsort(depth)
+    order = order[depth[order] <= reach]  # nodes the tip cannot get to constrain nothing
+    # For s from the tip up: the nodes within reach - s are the shallowest ones, so the cap
+    # at s is the least limit of the nodes no deeper than that.
+    deepest_first = order[::-1]
+    caps = np.minimum.accumulate(limits[order])[::-1]  # caps[j]: nodes up to deepest_first[j]
+    pairs: list[tuple[float, float]] = []
+    for node, cap in zip(deepest_first, caps, strict=True):
+        s = max(0.0, reach - float(depth[node]))
+        if not pairs:
+            pairs.append((0.0, float(cap)))
+        elif cap >= pairs[-1][1] * (1.0 + step) and s > pairs[-1][0]:
+            pairs.append((s, float(cap)))
+    if pairs[-1][1] < wire.max_segment_length and reach > float(depth[order[0]]):
+        # Beyond the inlet's reach (the wire that never leaves the sheath): the wire's own cap.
+        pairs.append((reach - float(depth[order[0]]) + 1e-9, wire.max_segment_length))
+    if len(pairs) == 1 and pairs[0][1] >= wire.max_segment_length:
         return wire
-    return fit_segments(wire, JUNCTION_BEND_RADII * narrowest, narrowest, fill)
+    return dataclasses.replace(wire, segment_limits=tuple(pairs))
 
 
-def _chords_fit(points: np.ndarray, rooms: np.ndarray, arc: np.ndarray, length: float) -> bool:
-    """Whether every segment of ``length`` (m) laid as a chord from a node of the branch
-    ``points`` to a later node stays within the ``rooms`` (m) of the nodes it spans."""
-    for start in range(len(points)):
-        # A chord is no longer than the arc it spans: start the search where the arc is long
-        # enough.
-        end = int(np.searchsorted(arc, arc[start] + length))
-        while end < len(points) and np.linalg.norm(points[end] - points[start]) < length:
-            end += 1
-        if end >= len(points):
-            return True
-        # The chord's far end: where the branch's last edge crosses the sphere of radius
-        # ``length`` about the start (|a + t d| = length), not the node past it.
-        a, d = points[end - 1] - points[start], points[end] - points[end - 1]
-        b, c = float(a @ d), float(a @ a) - length**2
-        t = (-b + math.sqrt(b * b - float(d @ d) * c)) / float(d @ d)
-        span = points[start:end] - points[start]
-        axis = (a + t * d) / length
-        off = np.linalg.norm(span - np.outer(span @ axis, axis), axis=1)
-        room = rooms[start:end + 1].min()
-        if room > 0 and off.max() > room:
-            return False
-    return True
+def _chord_fits(points: np.ndarray, rooms: np.ndarray, arc: np.ndarray, start: int,
+                length: float) -> tuple[bool, int]:
+    """Whether a segment of ``length`` (m) laid as a chord from node ``start`` of the branch
+    ``points`` to a later node stays within the ``rooms`` (m) of the nodes it spans, and the
+    last node it spans (the branch's last if it runs past its end)."""
+    # A chord is no longer than the arc it spans: start the search where the arc is long
+    # enough.
+    end = int(np.searchsorted(arc, arc[start] + length))
+    while end < len(points) and np.linalg.norm(points[end] - points[start]) < length:
+        end += 1
+    if end >= len(points):
+        return True, len(points) - 1
+    # The chord's far end: where the branch's last edge crosses the sphere of radius
+    # ``length`` about the start (|a + t d| = length), not the node past it.
+    a, d = points[end - 1] - points[start], points[end] - points[end - 1]
+    b, c = float(a @ d), float(a @ a) - length**2
+    t = (-b + math.sqrt(b * b - float(d @ d) * c)) / float(d @ d)
+    span = points[start:end] - points[start]
+    axis = (a + t * d) / length
+    off = np.linalg.norm(span - np.outer(span @ axis, axis), axis=1)
+    room = rooms[start:end + 1].min()
+    return not (room > 0 and off.max() > room), end
 
 
 def _room(wire: GuidewireConfig, lumen_radius: float, fill: float, where: str) -> float:
@@ -299,6 +339,22 @@ def _room(wire: GuidewireConfig, lumen_radius: float, fill: float, where: str) -
 def base_spec() -> mujoco.MjSpec:
     """Returns a spec holding only ``mjcf/options.xml`` (options, visual, default classes)."""
     return mujoco.MjSpec.from_file(str(assets.mjcf_path("options.xml")))
+
+
+def set_wire_options(spec: mujoco.MjSpec, wire: GuidewireConfig,
+                     timestep: float | None = None) -> None:
+    """Sets the options of ``spec`` that ``wire``'s numerical settings choose: the physics
+    step (``timestep`` if given, else the wire's ``max_timestep`` where it is shorter than the
+    spec's), the friction cone and the integrator. A scene holds one wire, so the wire's
+    choices are the scene's."""
+    if timestep is not None:
+        spec.option.timestep = timestep
+    elif wire.max_timestep is not None:
+        spec.option.timestep = min(spec.option.timestep, wire.max_timestep)
+    if wire.friction_cone is not None:
+        spec.option.cone = FRICTION_CONES[wire.friction_cone]
+    if wire.integrator is not None:
+        spec.option.integrator = INTEGRATORS[wire.integrator]
 
 
 def insertion_frame(direction: np.ndarray) -> np.ndarray:
@@ -372,14 +428,7 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
     wire, driver = config.wire, config.driver
     driver.check_wire(wire.length, wire.radius, wire.tip_length)
     spec = base_spec()
-    if config.timestep is not None:
-        spec.option.timestep = config.timestep
-    elif wire.max_timestep is not None:
-        spec.option.timestep = min(spec.option.timestep, wire.max_timestep)
-    if wire.friction_cone is not None:
-        spec.option.cone = FRICTION_CONES[wire.friction_cone]
-    if wire.integrator is not None:
-        spec.option.integrator = INTEGRATORS[wire.integrator]
+    set_wire_options(spec, wire, config.timestep)
     if vessel is None:
         inlet, direction = np.zeros(3), np.array([1.0, 0.0, 0.0])
         straight = False

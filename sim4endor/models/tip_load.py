@@ -34,7 +34,7 @@ from scipy.linalg import eigh_tridiagonal
 
 from sim4endor.models import constants as names
 from sim4endor.models.guidewire import GuidewireConfig, add_guidewire, segment_lengths
-from sim4endor.models.scene import base_spec
+from sim4endor.models.scene import base_spec, set_wire_options
 
 #: Standard gravity: 1 gram-force in newtons is 1e-3 x this.
 GRAVITY = 9.80665
@@ -192,10 +192,10 @@ def tested_wire(
 
 
 def _scene(
-    wire: GuidewireConfig, lengths: NDArray[np.float64], timestep: float, gap: float
+    wire: GuidewireConfig, lengths: NDArray[np.float64], timestep: float | None, gap: float
 ) -> mujoco.MjModel:
     spec = base_spec()
-    spec.option.timestep = timestep
+    set_wire_options(spec, wire, timestep)
     # A body on a slide joint whose position the test prescribes. Not a mocap body: with a
     # mocap parent the cable plugin's forces came out NaN at t = 0 in about 1 of 3 processes
     # (MuJoCo 3.17; measured, cause not found), with a jointed parent in none of 18.
@@ -219,7 +219,8 @@ def _scene(
 
 def force_deflection(
     wire: GuidewireConfig, free_length: float = TEST_FREE_LENGTH, max_shortening: float = 0.1,
-    increment: float = 5e-5, speed: float = 0.002, hold: float = 1.0, timestep: float = 0.005,
+    increment: float = 5e-5, speed: float = 0.002, hold: float = 1.0,
+    timestep: float | None = None,
 ) -> ForceDeflection:
     """The tip-load test's settled force–deflection curve: the plate force at each clamp
     position, as a slow bench push records it.
@@ -232,13 +233,16 @@ def force_deflection(
     depend on the mass scaling or the push speed (``tests/test_wires.py``). A continuous push
     at a bench's speed does not give that: the clamp shortens the column faster than its
     scaled mass can move sideways to buckle, and the plate reads 10-40 times the rating over
-    the first 50 ms of contact (docs/guidewire.md, "Tip-load test").
+    the first 50 ms of contact (docs/guidewire.md, "Tip-load test"). The scene takes the
+    wire's numerical options (:func:`~sim4endor.models.scene.set_wire_options`); ``timestep``
+    (s) replaces its step.
 
     Raises:
         RuntimeError: If the simulation goes unstable.
     """
     tested, lengths = tested_wire(wire, free_length)
     model = _scene(tested, lengths, timestep, gap=1e-4 + wire.contact_margin)
+    timestep = model.opt.timestep
     data = mujoco.MjData(model)
     plate = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "plate")
     tip = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names.WIRE_TIP_SITE)

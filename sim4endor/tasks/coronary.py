@@ -80,18 +80,21 @@ def side_of(seed: int, side: Sides) -> Literal["left", "right"]:
     return side
 
 
-def scene_for(base: SceneConfig | None) -> SceneConfig:
-    """The scene every tree of a pool is compiled with: travel to the deepest target, the
-    wire long enough for it, a tip wider than the guide catheter's bore allows
+def scene_for(base: SceneConfig | None, same_wire: bool = False) -> SceneConfig:
+    """The scene a pool's trees are compiled from: travel to the deepest target, the wire long
+    enough for it and a tip wider than the guide catheter's bore allows
     (:data:`~sim4endor.models.scene.SOFT_TIP_FILL`) narrowed to it (the catalogue's coronary
-    tips are kept as shaped), and shaft segments short enough for the tightest bend the
-    generator draws."""
+    tips are kept as shaped). Each tree then fits its own travel and shaft segments
+    (:func:`build_member`); with ``same_wire`` every tree keeps this scene, its shaft
+    segments short enough for the tightest bend the generator draws."""
     from sim4endor.vessels.generators.coronary_arteries import CoronaryArteriesConfig
 
     scene = with_travel(base or SceneConfig(wire=wires.resolve(DEFAULT_WIRE)), MAX_INSERTION)
     generator = CoronaryArteriesConfig()
     wire = fit_tip(scene.wire, generator.catheter_radius, SOFT_TIP_FILL,
                    where="a coronary tree's guide catheter")
+    if not same_wire:
+        return dataclasses.replace(scene, wire=wire)
     # The tightest bend: the narrowest lumen at the largest curvature the generator allows
     # (0.75 mm at 2.5 radii, 1.9 mm). A 4.85 mm shaft segment would bow 1.6 mm off the axis
     # there, 2.7 times the room; such pinched segments blew a workhorse with a hydrophilic
@@ -106,7 +109,9 @@ def scene_for(base: SceneConfig | None) -> SceneConfig:
 def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig,
                  same_wire: bool = False) -> Anatomy:
     """Generates the tree of ``seed``, builds it once (cached on disk) and compiles it with
-    ``scene``, its travel fitted to the tree's deepest target unless ``same_wire``."""
+    ``scene``, its travel fitted to the tree's deepest target and its shaft segments to the
+    bends and junctions the wire can reach (:func:`~sim4endor.models.scene.config_for_vessel`)
+    unless ``same_wire``."""
     from sim4endor.vessels.build import BuildParams
     from sim4endor.vessels.generators.coronary_arteries import (
         CoronaryArteriesConfig,
@@ -120,7 +125,7 @@ def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig,
     name = f"{config.side}_coronary_{seed:05d}"
     folder = anatomy.cached_build(coronary_arteries(config, seed=seed), name, cache_dir,
                                   config, params)
-    return compile_anatomy(folder, scene, fit="none" if same_wire else "travel")
+    return compile_anatomy(folder, scene, fit="none" if same_wire else "all")
 
 
 def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = None,
@@ -146,7 +151,7 @@ def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = No
     if side not in ("left", "right", "both"):
         raise TaskConfigError(f"task_kwargs side must be 'left', 'right' or 'both', got {side!r}.")
     folder = cache_dir or default_cache_dir()
-    fitted = scene_for(scene)
+    fitted = scene_for(scene, same_wire)
     return AnatomyPool(
         [functools.partial(build_member, seed + k, folder, side, fitted, same_wire)
          for k in range(size)],
