@@ -48,7 +48,11 @@ tip-frame entries that do not change when the anatomy moves
 (``{"preset": "workhorse", "tip": "J"}``) also works. Defaults: ``paper`` on the phantoms and
 ``vessel`` folders, ``workhorse`` with a 2 mm/45° tip on ``coronary`` and with its tip shaped
 3 mm at 75° on ``random_coronary``. The catalogue shapes the ``workhorse`` 3 mm at 75° with a
-50° curve 5 mm back, for coronary-calibre vessel folders.
+50° curve 5 mm back, for coronary-calibre vessel folders. A preset comes at
+``task_kwargs={"fidelity": ...}``: ``"converged"`` (default; trajectories that do not depend
+on the wire's artificial mass) or ``"fast"`` (the x1e4 wire, for exploring; for ``paper`` the
+published model of Table I), :mod:`sim4endor.models.fidelity`. The simplified phantom's own
+wire defaults to ``"fast"``, which is converged there (:func:`default_fidelity`).
 
 **Action**: shape (2,), bounded [-1, 1]: ``[Δd / max_insertion_step, Δθ / max_rotation_step]``
 per control step; defaults 1.5 mm and 9° at 20 Hz (``control_timestep`` 0.05 s), i.e. at most
@@ -82,7 +86,9 @@ from dm_control.rl import control
 
 from sim4endor import registry
 from sim4endor.errors import Sim4EndoRError
+from sim4endor.models import fidelity as fidelities
 from sim4endor.models import wires
+from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.models.scene import SceneConfig
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.rewards import RewardConfig
@@ -114,7 +120,7 @@ _Config = TypeVar("_Config")
 #: task_kwargs understood by every task (besides the domain-specific ones below).
 _COMMON_KWARGS = (
     "random", "reward", "curvature_weight", "observations", "action", "termination",
-    "initial_state", "pixels", "wire",
+    "initial_state", "pixels", "wire", "fidelity",
 )
 _DOMAIN_KWARGS: Mapping[str, tuple[str, ...]] = {
     "vessel": ("vessel", "target"),
@@ -293,13 +299,39 @@ def default_wire(domain_name: str) -> str | Mapping[str, Any]:
     return wires.PAPER
 
 
-def _scene(kwargs: Mapping[str, Any], domain_name: str) -> SceneConfig:
-    """The scene of task_kwargs ``wire`` (a preset name, a GuidewireConfig or a mapping), or
-    of the domain's :func:`default_wire`."""
+def default_fidelity(domain_name: str) -> str:
+    """The fidelity of a domain's :func:`default_wire` when ``task_kwargs`` names none:
+    ``"converged"`` (:mod:`sim4endor.models.fidelity`), except on the simplified phantom,
+    whose paper wire keeps the published model of Table I (``"fast"``): in its two straight
+    2 mm tubes that model is already converged (the expert's episodes within 0.38 and 0.39 mm,
+    0.05 and 0.08 mm on average, of a 10 times lighter wire at half the step, with no hull
+    overlap; docs/guidewire.md, "Converged by default") at a third of the converged setting's
+    cost. A wire the task arguments name takes ``"converged"`` everywhere."""
+    return fidelities.FAST if domain_name == "simplified_phantom" else fidelities.DEFAULT
+
+
+def wire_config(domain_name: str, task_kwargs: Mapping[str, Any] | None = None
+                ) -> GuidewireConfig:
+    """The wire a task of ``domain_name`` builds from ``task_kwargs`` ``wire`` (a preset
+    name, a GuidewireConfig or a mapping; default: the domain's :func:`default_wire`) and
+    ``fidelity`` (default: the domain's :func:`default_fidelity` for its own wire,
+    ``"converged"`` for another).
+
+    Raises:
+        sim4endor.tasks.TaskConfigError: For a bad wire or fidelity; the message names it.
+    """
+    kwargs = task_kwargs or {}
+    fidelity = kwargs.get("fidelity")
+    if fidelity is None and "wire" not in kwargs:
+        fidelity = default_fidelity(domain_name)
     try:
-        return SceneConfig(wire=wires.resolve(kwargs.get("wire", default_wire(domain_name))))
+        return wires.resolve(kwargs.get("wire", default_wire(domain_name)), fidelity)
     except Sim4EndoRError as exc:
         raise TaskConfigError(f"task_kwargs wire: {exc}") from None
+
+
+def _scene(kwargs: Mapping[str, Any], domain_name: str) -> SceneConfig:
+    return SceneConfig(wire=wire_config(domain_name, kwargs))
 
 
 def _termination(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> TerminationConfig:
@@ -370,7 +402,8 @@ def load(
         task_kwargs: ``wire`` (a preset of :func:`sim4endor.models.wires.names`, e.g.
             ``"workhorse"``, a :class:`~sim4endor.models.guidewire.GuidewireConfig` or a
             mapping of its fields with optional ``preset`` and ``tip``; default: the domain's,
-            above),
+            above), ``fidelity`` (``"converged"``, the default, or ``"fast"``: the numerical
+            settings of a preset wire, :mod:`sim4endor.models.fidelity`),
             ``random`` (seed), ``reward`` (``"manifold"``/``"euclidean"`` or a
             :class:`~sim4endor.rewards.RewardConfig`), ``curvature_weight``, ``observations``
             (extra entries), ``action`` / ``termination`` / ``initial_state`` / ``pixels``

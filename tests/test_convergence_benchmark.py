@@ -27,7 +27,7 @@ def test_the_reference_is_ten_times_lighter_at_half_the_step() -> None:
     # Armature is stiffness x armature_time², so 10x less armature is time / sqrt(10).
     assert light.armature_time**2 == pytest.approx(wire.armature_time**2 / 10)
     assert light.max_timestep == pytest.approx(0.00125)
-    paper = wires.preset("paper")  # sets no step of its own: the scene's 5 ms
+    paper = wires.preset("paper", fidelity="fast")  # sets no step of its own: the scene's 5 ms
     assert convergence.reference(paper, convergence.physics_step(paper)).max_timestep == 0.0025
 
 

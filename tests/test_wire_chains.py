@@ -12,7 +12,7 @@ from navigation_helpers import require_vessel
 from sim4endor import vessels
 from sim4endor.benches import validation
 from sim4endor.models import constants as names
-from sim4endor.models import wires
+from sim4endor.models import fidelity, wires
 from sim4endor.models.guidewire import GuidewireConfig, GuidewireConfigError, chain_starts
 from sim4endor.models.scene import config_for_vessel
 from sim4endor.physics import GuidewirePhysics
@@ -32,10 +32,12 @@ def test_the_tip_stays_in_one_chain() -> None:
         GuidewireConfig(chain_bodies=4)  # 5 tip segments
 
 
-def test_the_catalogue_splits_its_wires_and_the_paper_wire_stays_one_chain() -> None:
-    assert wires.preset("paper").chain_bodies is None
-    for name in ("workhorse", "intermediate", "stiff"):
-        assert wires.preset(name).chain_bodies == wires.CHAIN_BODIES
+def test_the_catalogue_splits_its_wires_and_the_published_paper_wire_stays_one_chain() -> None:
+    assert wires.preset("paper", fidelity="fast").chain_bodies is None
+    for level in fidelity.names():
+        for name in ("workhorse", "intermediate", "stiff"):
+            assert wires.preset(name, fidelity=level).chain_bodies == 6
+    assert wires.preset("paper").chain_bodies == 6
 
 
 def _placed(wire: GuidewireConfig, vessel: vessels.Vessel) -> GuidewirePhysics:

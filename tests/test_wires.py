@@ -13,7 +13,7 @@ import pytest
 from sim4endor import suite, vessels
 from sim4endor.benches import validation
 from sim4endor.models import constants as names
-from sim4endor.models import tip_load, wires
+from sim4endor.models import fidelity, tip_load, wires
 from sim4endor.models.guidewire import (
     GuidewireConfig,
     GuidewireConfigError,
@@ -30,8 +30,13 @@ RATED = [n for n in wires.names() if wires.entry(n).rated_tip_load_gf is not Non
 
 def test_catalogue_has_the_issue_presets_and_paper_is_the_default_wire() -> None:
     assert wires.names() == ("paper", "workhorse", "intermediate", "stiff")
-    assert wires.preset("paper") == GuidewireConfig() == SceneConfig().wire
-    assert wires.resolve(None) == GuidewireConfig()
+    # At the fast fidelity the paper preset is the published model bit for bit; converged,
+    # the same wire with other numerical settings.
+    published = wires.preset("paper", fidelity="fast")
+    assert published == GuidewireConfig() == SceneConfig().wire
+    assert wires.resolve(None) == wires.preset("paper")
+    assert fidelity.numerics("converged", "paper").apply(published) == wires.preset("paper")
+    assert wires.resolve(None, "fast") == published
     ratings = {n: wires.entry(n).rated_tip_load_gf for n in RATED}
     assert 0.5 <= ratings["workhorse"] <= 1.0
     assert 3.0 <= ratings["intermediate"] <= 6.0
@@ -260,7 +265,7 @@ def test_random_coronary_takes_a_wire_and_its_tree_cache_ignores_it(
     assert (seed_a, dir_a) == (seed_b, dir_b)  # same tree folder for every wire
     # The domain's default: the workhorse, its tip shaped 3 mm at 75°.
     assert scene_a.wire == wires.shaped(wires.preset("workhorse"), wires.TipShape.degrees(3, 75))
-    assert scene_b.wire == GuidewireConfig() and scene_c.wire == wires.preset("workhorse")
+    assert scene_b.wire == wires.preset("paper") and scene_c.wire == wires.preset("workhorse")
     with pytest.raises(TaskConfigError, match="valid"):
         suite.load("random_coronary", "navigate", {"wire": "noodle", "cache_dir": tmp_path})
 
@@ -268,17 +273,44 @@ def test_random_coronary_takes_a_wire_and_its_tree_cache_ignores_it(
 def test_catalogue_wires_run_at_their_own_step_unless_the_scene_sets_one() -> None:
     tube = vessels.load("simplified_phantom")
     workhorse = wires.preset("workhorse")
-    assert workhorse.max_timestep == wires.CATALOGUE_TIMESTEP
-    assert wires.preset("paper").max_timestep is None  # the published model's 5 ms
+    assert workhorse.max_timestep == pytest.approx(0.0025)
+    assert wires.preset("paper", fidelity="fast").max_timestep is None  # published: 5 ms
     step = {
-        name: build_model(tube, SceneConfig(wire=wires.preset(name))).opt.timestep
-        for name in ("paper", "workhorse")
+        (name, level): build_model(tube, SceneConfig(
+            wire=wires.preset(name, fidelity=level))).opt.timestep
+        for name in ("paper", "workhorse", "stiff") for level in fidelity.names()
     }
-    assert step == {"paper": pytest.approx(0.005), "workhorse": pytest.approx(0.0025)}
+    assert step == {
+        ("paper", "converged"): pytest.approx(0.00125), ("paper", "fast"): pytest.approx(0.005),
+        ("workhorse", "converged"): pytest.approx(0.0025),
+        ("workhorse", "fast"): pytest.approx(0.0025),
+        ("stiff", "converged"): pytest.approx(0.00125), ("stiff", "fast"): pytest.approx(0.0025),
+    }
     chosen = build_model(tube, SceneConfig(wire=workhorse, timestep=0.004)).opt.timestep
     assert chosen == pytest.approx(0.004)  # an explicit scene step wins
     with pytest.raises(GuidewireConfigError, match="max_timestep"):
         dataclasses.replace(workhorse, max_timestep=0.0)
+
+
+def test_a_fidelity_sets_the_numerics_and_never_the_wires_physics() -> None:
+    numerical = {f.name for f in dataclasses.fields(fidelity.Numerics)}
+    for name in wires.names():
+        converged, fast = (wires.preset(name, fidelity=level) for level in fidelity.names())
+        differing = {f.name for f in dataclasses.fields(GuidewireConfig)
+                     if getattr(converged, f.name) != getattr(fast, f.name)}
+        assert differing and differing <= numerical, name
+        assert converged.integrator == "discrete" and converged.mass_scale == 100.0
+        assert fast.mass_scale == 1e4
+    tube = vessels.load("simplified_phantom")
+    model = build_model(tube, SceneConfig(wire=wires.preset("workhorse")))
+    wire_geoms = model.geom_priority == 1
+    assert np.allclose(model.geom_solimp[wire_geoms], (0.9, 0.999, 0.0001, 0.5, 2.0))
+    with pytest.raises(fidelity.FidelityError, match=r"'exact'.*'converged', 'fast'"):
+        wires.preset("workhorse", fidelity="exact")
+    with pytest.raises(wires.WireCatalogueError, match="carries its own numerical settings"):
+        wires.resolve(wires.preset("workhorse"), "fast")
+    with pytest.raises(GuidewireConfigError, match="contact_solimp"):
+        dataclasses.replace(wires.preset("workhorse"), contact_solimp=(0.9, 0.8, 1e-4, 0.5, 2))
 
 
 def test_catalogue_wires_name_their_coat_and_its_friction() -> None:
@@ -298,10 +330,12 @@ def test_catalogue_wires_name_their_coat_and_its_friction() -> None:
 def test_catalogue_wires_choose_elliptic_friction_cones_and_paper_keeps_the_scene_s() -> None:
     tube = vessels.load("simplified_phantom")
     cone = {
-        name: build_model(tube, SceneConfig(wire=wires.preset(name))).opt.cone
+        name: build_model(tube, SceneConfig(wire=wires.preset(name, fidelity="fast"))).opt.cone
         for name in ("paper", "workhorse")
     }
     assert cone == {"paper": mujoco.mjtCone.mjCONE_PYRAMIDAL,
                     "workhorse": mujoco.mjtCone.mjCONE_ELLIPTIC}
+    converged = build_model(tube, SceneConfig(wire=wires.preset("paper"))).opt.cone
+    assert converged == mujoco.mjtCone.mjCONE_ELLIPTIC
     with pytest.raises(GuidewireConfigError, match=r"friction_cone.*'conical'"):
         dataclasses.replace(wires.preset("workhorse"), friction_cone="conical")

@@ -35,13 +35,15 @@ import numpy as np
 from sim4endor import _json as strict_json
 from sim4endor import suite
 from sim4endor.envs.gym import NavigationEnv
+from sim4endor.models import fidelity as fidelities
 from sim4endor.physics import GuidewirePhysics
 
 #: A step of the bare-physics replay: a copy of the physics just after a reset (None within an
 #: episode) and the driver targets (insertion m, rotation rad).
 Command = tuple[GuidewirePhysics | None, tuple[float, float]]
-#: A wire setting as suite.load takes it: a preset name, a mapping of fields, or None (the default).
-Wire = str | dict[str, Any] | None
+#: Task arguments besides the seed: ``wire`` (a preset name or a mapping of fields) and
+#: ``fidelity``, where given (the domain's defaults otherwise).
+Extra = dict[str, Any]
 #: Resets before the timed loops: a pool of 8 trees drawn 40 times misses one with
 #: probability 8 x (7/8)^40 = 0.4 %.
 _WARM_RESETS = 40
@@ -81,13 +83,13 @@ class EnvRun:
     mean_contacts: float
 
 
-def _kwargs(wire: Wire) -> dict[str, Any]:
-    return {"random": 0} if wire is None else {"random": 0, "wire": wire}
+def _kwargs(extra: Extra) -> dict[str, Any]:
+    return {"random": 0, **extra}
 
 
-def env_loop(domain: str, task: str, actions: np.ndarray, wire: Wire) -> EnvRun:
+def env_loop(domain: str, task: str, actions: np.ndarray, extra: Extra) -> EnvRun:
     """Runs the dm_control env on ``actions``."""
-    env = suite.load(domain, task, _kwargs(wire))
+    env = suite.load(domain, task, _kwargs(extra))
     # A pool domain builds each tree the first time an episode draws it (about 0.7 s for a
     # cached coronary tree, printed as first_load_s); draw them before timing, so the loop
     # measures stepping and resets as a long training run sees them.
@@ -149,9 +151,9 @@ def physics_loop(commands: list[Command], n_sub_steps: int) -> float:
     return elapsed
 
 
-def gym_loop(domain: str, task: str, actions: np.ndarray, wire: Wire) -> float:
+def gym_loop(domain: str, task: str, actions: np.ndarray, extra: Extra) -> float:
     """Returns the seconds of the same actions through the gymnasium adapter."""
-    env = NavigationEnv(domain, task, _kwargs(wire))
+    env = NavigationEnv(domain, task, _kwargs(extra))
     env.reset(seed=0)
     for _ in range(_WARM_RESETS):
         env.reset()
@@ -163,9 +165,9 @@ def gym_loop(domain: str, task: str, actions: np.ndarray, wire: Wire) -> float:
     return time.perf_counter() - start
 
 
-def reset_cost(domain: str, task: str, count: int, wire: Wire) -> float:
+def reset_cost(domain: str, task: str, count: int, extra: Extra) -> float:
     """Returns the median seconds of a reset after a few steps."""
-    env = suite.load(domain, task, _kwargs(wire))
+    env = suite.load(domain, task, _kwargs(extra))
     times = []
     for _ in range(count):
         env.reset()
@@ -177,31 +179,34 @@ def reset_cost(domain: str, task: str, count: int, wire: Wire) -> float:
     return statistics.median(times)
 
 
-def measure(domain: str, task: str, steps: int, repeats: int, wire: Wire = None
+def measure(domain: str, task: str, steps: int, repeats: int, extra: Extra | None = None
             ) -> dict[str, Any]:
     """Times one task (env, bare physics, gymnasium, reset) and returns its figures;
-    ``wire`` replaces the task's wire (a preset name or a mapping, as ``suite.load`` takes)."""
+    ``extra`` task arguments (``wire``: a preset name or a mapping, ``fidelity``) replace the
+    task's defaults."""
+    extra = extra or {}
     actions = _random_actions(steps, seed=0)
     t_load = time.perf_counter()
-    suite.load(domain, task, _kwargs(wire))
+    suite.load(domain, task, _kwargs(extra))
     load_s = time.perf_counter() - t_load
     # Alternating the loops and keeping the fastest run of each cancels most of the noise
     # of a shared machine.
     runs: list[EnvRun] = []
     physics_runs, gym_runs, overheads = [], [], []
     for _ in range(repeats):
-        run = env_loop(domain, task, actions, wire)
+        run = env_loop(domain, task, actions, extra)
         runs.append(run)
         overheads.append(100.0 * (run.cpu_s - run.physics_cpu_s) / run.physics_cpu_s)
         physics_runs.append(physics_loop(run.commands, run.n_sub_steps))
-        gym_runs.append(gym_loop(domain, task, actions, wire))
+        gym_runs.append(gym_loop(domain, task, actions, extra))
     env_s = min(run.wall_s for run in runs)
     physics_s, gym_s = min(physics_runs), min(gym_runs)
     run = runs[0]
     return {
         "domain": domain,
         "task": task,
-        "wire": wire,
+        "wire": extra.get("wire"),
+        "fidelity": extra.get("fidelity"),
         "env_steps": steps,
         "physics_steps_per_env_step": run.n_sub_steps,
         "timestep_ms": 1e3 * run.timestep,
@@ -214,7 +219,7 @@ def measure(domain: str, task: str, steps: int, repeats: int, wire: Wire = None
         "env_vs_replay_percent": 100.0 * (min(r.cpu_s for r in runs) - physics_s) / physics_s,
         "realtime_factor": steps * run.n_sub_steps * run.timestep / env_s,
         "mean_contacts": run.mean_contacts,
-        "reset_ms": 1e3 * reset_cost(domain, task, 20, wire),
+        "reset_ms": 1e3 * reset_cost(domain, task, 20, extra),
         "first_load_s": load_s,
         "load_average_1min": os.getloadavg()[0],
     }
@@ -232,7 +237,7 @@ _TABLE = (
 )
 
 
-def _wire(text: str) -> Wire:
+def _wire(text: str) -> str | dict[str, Any]:
     return json.loads(text) if text.lstrip().startswith("{") else text
 
 
@@ -248,6 +253,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3,
                         help="alternate the loops this often and keep each one's fastest run")
     parser.add_argument("--json", action="store_true", help="print one JSON line per task")
+    parser.add_argument("--fidelity", choices=fidelities.names(), default=None,
+                        help="the wire's numerical settings (default: each domain's)")
     parser.add_argument(
         "--wire", type=_wire, default=None,
         help="the wire of every task instead of its default: a preset name, or a JSON "
@@ -255,8 +262,10 @@ def main() -> None:
     args = parser.parse_args()
     if args.cpu is not None:
         os.sched_setaffinity(0, {args.cpu})
+    extra = {key: value for key, value in (("wire", args.wire), ("fidelity", args.fidelity))
+             if value is not None}
     if not args.all:
-        result = measure(args.domain, args.task, args.steps, args.repeats, args.wire)
+        result = measure(args.domain, args.task, args.steps, args.repeats, extra)
         if args.json:
             print(strict_json.dumps(result))
             return
@@ -267,14 +276,15 @@ def main() -> None:
         print("| " + " | ".join(heading for heading, _, _ in _TABLE) + " |")
         print("|" + "---|" * len(_TABLE))
     for domain, task in suite.ALL_TASKS:
-        result = measure(domain, task, args.steps, args.repeats, args.wire)
+        result = measure(domain, task, args.steps, args.repeats, extra)
         if args.json:
             print(strict_json.dumps(result), flush=True)
         else:
             cells = (fmt.format(result[key]) for _, key, fmt in _TABLE)
             print("| " + " | ".join(cells) + " |", flush=True)
     if not args.json:
-        print(f"\n{args.steps} random env steps per task, fastest of {args.repeats} runs; "
+        print(f"\n{args.steps} random env steps per task, fastest of {args.repeats} runs, "
+              f"fidelity {args.fidelity or 'each domain default'}; "
               f"load average {os.getloadavg()[0]:.2f}")
 
 

@@ -49,7 +49,7 @@ from numpy.typing import NDArray
 
 from sim4endor import _json as strict_json
 from sim4endor import suite
-from sim4endor.models import wires
+from sim4endor.models import fidelity as fidelities
 from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.tasks.expert import CenterlineExpert
 
@@ -125,9 +125,10 @@ def reference(wire: GuidewireConfig, timestep: float) -> GuidewireConfig:
         max_timestep=timestep / STEP_FACTOR)
 
 
-def shipped_wire(case: Case) -> GuidewireConfig:
-    """The wire the case's domain uses by default."""
-    return wires.resolve(suite.default_wire(case.domain))
+def shipped_wire(case: Case, fidelity: str | None = None) -> GuidewireConfig:
+    """The wire the case's domain uses by default, at ``fidelity`` (``None``: the domain's
+    default, :func:`sim4endor.suite.default_fidelity`)."""
+    return suite.wire_config(case.domain, {} if fidelity is None else {"fidelity": fidelity})
 
 
 def physics_step(wire: GuidewireConfig) -> float:
@@ -283,6 +284,9 @@ def wire_overrides(text: str) -> dict[str, Any]:
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cases", choices=sorted(CASES), default="full")
+    parser.add_argument("--fidelity", choices=fidelities.names(), default=None,
+                        help="every case's wire at this fidelity (default: each domain's, "
+                             "sim4endor.suite.default_fidelity)")
     parser.add_argument("--wire", type=wire_overrides, default={},
                         help="GuidewireConfig fields (JSON) changed on every case's wire")
     parser.add_argument("--sweep", action="store_true",
@@ -293,19 +297,21 @@ def main(argv: Sequence[str] | None = None) -> None:
     cases = CASES[args.cases]
 
     def wire(case: Case) -> GuidewireConfig:
-        return dataclasses.replace(shipped_wire(case), **args.wire)
+        return dataclasses.replace(shipped_wire(case, args.fidelity), **args.wire)
 
     if args.sweep:
         coronary = [case for case in cases if case.domain == "coronary"]
         for mass, step in SWEEP:
             rows = run_jobs([(case, sweep_wire(wire(case), mass, step)) for case in coronary],
                             args.workers)
-            result = {"mass_scale": mass, "timestep_s": step, "wire": args.wire,
+            result = {"mass_scale": mass, "timestep_s": step, "fidelity": args.fidelity,
+                      "wire": args.wire,
                       **summary(rows), "cases": rows}
             _print(result, args.json)
         return
     rows = run_jobs([(case, wire(case)) for case in cases], args.workers)
-    _print({"wire": args.wire, **summary(rows), "cases": rows}, args.json)
+    _print({"fidelity": args.fidelity, "wire": args.wire, **summary(rows), "cases": rows},
+           args.json)
 
 
 def _print(result: Mapping[str, Any], as_json: bool) -> None:

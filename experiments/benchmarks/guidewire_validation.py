@@ -1,13 +1,14 @@
 """Guidewire validation (issue 3 item 4): mechanics, steering, escape, speed.
 
     python experiments/benchmarks/guidewire_validation.py [--vessel simplified_phantom]
-        [--tries 10] [--seed 0] [--json]
+        [--tries 10] [--seed 0] [--fidelity converged|fast] [--json]
 
-Prints a human-readable report, or with ``--json`` one JSON line with exactly the keys
-cantilever_rel_error, torque_error_deg, steer_success_a, steer_success_b,
-max_escape_over_radius, realtime_factor, tip_load_rel_error, tip_load_gf,
-tapered_cantilever_rel_error, tapered_torsion_rel_error, torque_lag_deg, whip,
-torque_roll_not_through, torque_lag_gripped_deg, max_penetration_over_radius,
+Every preset at ``--fidelity`` (:mod:`sim4endor.models.fidelity`; default ``converged``; the
+phantom's wire is the ``paper`` preset). Prints a human-readable report, or with ``--json``
+one JSON line with exactly the keys fidelity, cantilever_rel_error, torque_error_deg,
+steer_success_a, steer_success_b, max_escape_over_radius, realtime_factor,
+tip_load_rel_error, tip_load_gf, tapered_cantilever_rel_error, tapered_torsion_rel_error,
+torque_lag_deg, whip, torque_roll_not_through, torque_lag_gripped_deg, max_penetration_over_radius,
 push_robustness, inertia_independence; the cost-vs-segment-count table is printed (to stderr
 with ``--json``). Run it on one core for the speed figures, e.g.
 ``OMP_NUM_THREADS=1 taskset -c 0 python ...``; the load average is printed with them.
@@ -63,8 +64,9 @@ Definitions:
 * push_robustness (per driver force limit 0.5 / 2 / 5 N, per preset): the same push, once
   as raw physics and once stopped like the navigation task's push_force failure (driver push
   > TerminationConfig.max_push_force, checked after every control step): max wall force (N,
-  per physics step), max penetration (wire radii), left_lumen (wire axis more than a wire
-  radius outside the nominal lumen, or non-finite), nan, warnings, ended_at_s.
+  per physics step, and the largest mean over a control step), max penetration (wire
+  radii), left_lumen (wire axis more than a wire radius outside the nominal lumen, or
+  non-finite), nan, warnings, ended_at_s.
 * inertia_independence (per tapered preset): armature / the real segment's inertia about its
   joint (bending and twist ranges over the joints) beside the mass scaling, and how far the
   tip's position after the S-lumen insertion moves (mm) with armature_time x2 and with 100x
@@ -93,6 +95,7 @@ from dm_control.rl import control
 from sim4endor import _json as strict_json
 from sim4endor import vessels
 from sim4endor.benches import push, torque, validation
+from sim4endor.models import fidelity as fidelities
 from sim4endor.models import tip_load, wires
 from sim4endor.models.guidewire import GuidewireConfig
 from sim4endor.models.scene import SceneConfig, config_for_vessel
@@ -114,19 +117,19 @@ def cantilever_errors(wire: GuidewireConfig) -> dict[str, float]:
             "scaled_mm": scaled.deflection * 1e3}
 
 
-def tip_loads() -> dict[str, dict[str, Any]]:
+def tip_loads(fidelity: str = fidelities.DEFAULT) -> dict[str, dict[str, Any]]:
     """The simulated tip-load test of every catalogue preset, with its rating (gf), and its
     settled force–deflection curve (shortening fraction, gf)."""
     out: dict[str, dict[str, Any]] = {}
     for name in wires.names():
-        entry = wires.entry(name)
-        result = tip_load.simulate_tip_load(entry.config)
-        rated = entry.rated_tip_load_gf
+        wire = wires.preset(name, fidelity=fidelity)
+        result = tip_load.simulate_tip_load(wire)
+        rated = wires.entry(name).rated_tip_load_gf
         peak = tip_load.gram_force(result.peak_before_read)
         out[name] = {
             "simulated": result.force_gf,
             "rated": rated,
-            "beam_theory": tip_load.gram_force(tip_load.buckling_load(entry.config)),
+            "beam_theory": tip_load.gram_force(tip_load.buckling_load(wire)),
             "rel_error": None if rated is None else abs(result.force_gf - rated) / rated,
             "peak_before_read": peak,
             "peak_over_rating": None if rated is None else peak / rated,
@@ -141,11 +144,12 @@ def tapered_presets() -> list[str]:
     return [name for name in wires.names() if wires.preset(name).core_profile is not None]
 
 
-def tapered_cantilever_errors(length: float = 0.03) -> dict[str, dict[str, float]]:
+def tapered_cantilever_errors(length: float = 0.03, fidelity: str = fidelities.DEFAULT
+                              ) -> dict[str, dict[str, float]]:
     """Tapered presets as cantilevers: real mass and default mass scaling (heavily damped)."""
     out = {}
     for name in tapered_presets():
-        wire = dataclasses.replace(wires.preset(name), length=length)
+        wire = dataclasses.replace(wires.preset(name, fidelity=fidelity), length=length)
         real = validation.tapered_cantilever(dataclasses.replace(wire, mass_scale=1.0))
         # Damped 8x (not 80x as before): a catalogue wire is split into chains, whose welds
         # go unstable under joint damping of a second or more; both settle within 60 s.
@@ -158,26 +162,30 @@ def tapered_cantilever_errors(length: float = 0.03) -> dict[str, dict[str, float
     return out
 
 
-def tapered_torsion_errors(length: float = 0.03) -> dict[str, dict[str, float]]:
+def tapered_torsion_errors(length: float = 0.03, fidelity: str = fidelities.DEFAULT
+                           ) -> dict[str, dict[str, float]]:
     """Tapered presets twisted at their tip: measured and predicted twist (rad)."""
     out = {}
     for name in tapered_presets():
-        result = validation.tapered_torsion(dataclasses.replace(wires.preset(name), length=length))
+        wire = dataclasses.replace(wires.preset(name, fidelity=fidelity), length=length)
+        result = validation.tapered_torsion(wire)
         out[name] = {"rel_error": result.relative_error, "twist_rad": result.twist,
                      "predicted_rad": result.predicted, "torque_n_m": result.torque}
     return out
 
 
-def torque_rolls() -> dict[str, torque.RollResult]:
+def torque_rolls(fidelity: str = fidelities.DEFAULT) -> dict[str, torque.RollResult]:
     """The S-lumen roll test of every catalogue preset."""
-    return {name: torque.roll_test(wires.preset(name)) for name in wires.names()}
+    return {name: torque.roll_test(wires.preset(name, fidelity=fidelity))
+            for name in wires.names()}
 
 
-def gripped_rolls() -> dict[str, dict[str, float]]:
+def gripped_rolls(fidelity: str = fidelities.DEFAULT) -> dict[str, dict[str, float]]:
     """The roll test of every tapered preset with one tip and coat, free and gripped."""
     out = {}
     for name in tapered_presets():
-        wire = wires.resolve({"preset": name, "coating": "hydrophobic", "tip": "2,45"})
+        wire = wires.resolve({"preset": name, "coating": "hydrophobic", "tip": "2,45"},
+                             fidelity)
         free = torque.roll_test(wire)
         gripped = torque.roll_test(wire, grip=torque.GRIP)
         out[name] = {"grip_n_m": torque.GRIP, "free": free.lag_deg, "gripped": gripped.lag_deg,
@@ -189,23 +197,25 @@ def gripped_rolls() -> dict[str, dict[str, float]]:
 
 def _push_row(result: push.PushResult) -> dict:
     return {"max_wall_force_n": result.max_wall_force,
+            "max_mean_wall_force_n": result.max_mean_wall_force,
             "max_penetration_over_radius": result.penetration_over_radius,
             "left_lumen": result.left_lumen, "nan": not result.finite,
             "warnings": list(result.warnings), "max_push_n": result.max_push,
             "ended_at_s": result.sim_time, "stopped_by_push_force": result.stopped}
 
 
-def push_robustness(vessel: vessels.Vessel) -> dict[str, dict[str, dict]]:
+def push_robustness(vessel: vessels.Vessel, fidelity: str = fidelities.DEFAULT
+                    ) -> dict[str, dict[str, dict]]:
     """Dead-end pushes at 0.5, 2 and 5 N, raw and with the task's push_force stop."""
     stop = TerminationConfig().max_push_force
     out: dict[str, dict[str, dict]] = {}
     for force in (0.5, 2.0, 5.0):
-        out[f"{force:g}"] = {
-            name: {"raw": _push_row(push.push_test(vessel, wires.preset(name), force)),
-                   "task": _push_row(push.push_test(vessel, wires.preset(name), force,
-                                                    stop_push_force=stop))}
-            for name in wires.names()
-        }
+        out[f"{force:g}"] = {}
+        for name in wires.names():
+            wire = wires.preset(name, fidelity=fidelity)
+            out[f"{force:g}"][name] = {
+                "raw": _push_row(push.push_test(vessel, wire, force)),
+                "task": _push_row(push.push_test(vessel, wire, force, stop_push_force=stop))}
     return out
 
 
@@ -213,20 +223,22 @@ def push_robustness(vessel: vessels.Vessel) -> dict[str, dict[str, dict]]:
 PUSH_ROLLS_DEG = (0, 90, 180, 270)
 
 
-def penetration_by_roll(vessel: vessels.Vessel,
-                        pushes: dict[str, dict[str, dict]]) -> dict[str, dict[str, float]]:
+def penetration_by_roll(vessel: vessels.Vessel, pushes: dict[str, dict[str, dict]],
+                        fidelity: str = fidelities.DEFAULT) -> dict[str, dict[str, float]]:
     """Deepest hull overlap (wire radii) of the 0.5 N dead-end push at each driver roll."""
     out: dict[str, dict[str, float]] = {}
     for name in wires.names():
         row = {"0": pushes["0.5"][name]["raw"]["max_penetration_over_radius"]}
+        wire = wires.preset(name, fidelity=fidelity)
         for roll in PUSH_ROLLS_DEG[1:]:
-            result = push.push_test(vessel, wires.preset(name), 0.5, rotation=math.radians(roll))
+            result = push.push_test(vessel, wire, 0.5, rotation=math.radians(roll))
             row[str(roll)] = result.penetration_over_radius
         out[name] = row
     return out
 
 
-def inertia_independence() -> dict[str, dict[str, float | list[float]]]:
+def inertia_independence(fidelity: str = fidelities.DEFAULT
+                         ) -> dict[str, dict[str, float | list[float]]]:
     """Inertia the quasi-static settings add, and the S-lumen insertion's tip shift (mm)."""
 
     def tip(wire: GuidewireConfig, timestep: float | None) -> np.ndarray:
@@ -234,7 +246,7 @@ def inertia_independence() -> dict[str, dict[str, float | list[float]]]:
 
     out: dict[str, dict[str, float | list[float]]] = {}
     for name in tapered_presets():
-        wire = wires.preset(name)
+        wire = wires.preset(name, fidelity=fidelity)
         factors = validation.inertia_factors(wire)
         default, held = torque.held_tips(wire, (1.0, 3.0))
         armature = tip(dataclasses.replace(wire, armature_time=2 * wire.armature_time), None)
@@ -263,10 +275,10 @@ def torque_error(vessel: vessels.Vessel, config: SceneConfig) -> float:
 
 
 def light_mass(config: SceneConfig) -> SceneConfig:
-    """The spike's x100 mass scaling at dt 1 ms: 100x closer to the real wire's inertia."""
-    return dataclasses.replace(
-        config, timestep=0.001, wire=dataclasses.replace(config.wire, mass_scale=100.0)
-    )
+    """The wire 100 times lighter (its mass scaling / 100) at dt 1 ms: as the spike compared
+    x1e4 with x1e2, 100x closer to the real wire's inertia."""
+    wire = dataclasses.replace(config.wire, mass_scale=config.wire.mass_scale / 100.0)
+    return dataclasses.replace(config, timestep=0.001, wire=wire)
 
 
 def steering(vessel: vessels.Vessel, config: SceneConfig, tries: int, seed: int) -> dict:
@@ -323,14 +335,16 @@ def escape(
     return worst / config.wire.radius, surface, force
 
 
-def robustness(name: str = "vascular_phantom") -> tuple[int, int]:
+def robustness(name: str = "vascular_phantom", fidelity: str = fidelities.DEFAULT
+               ) -> tuple[int, int]:
     """Insertion episodes in a tortuous phantom: (unhealthy episodes, episodes).
 
     Each target × driver rotation 0/90/180/270° × speed 20/30 mm/s, 8 s each; an episode is
     unhealthy on NaN, a MuJoCo warning or dm_control's instability error.
     """
     vessel = vessels.load(name)
-    physics = GuidewirePhysics.from_vessel(vessel, config_for_vessel(vessel))
+    paper = SceneConfig(wire=wires.preset("paper", fidelity=fidelity))
+    physics = GuidewirePhysics.from_vessel(vessel, config_for_vessel(vessel, paper))
     bad = total = 0
     for target in vessel.targets:
         for degrees in (0, 90, 180, 270):
@@ -364,11 +378,14 @@ def main() -> None:
     parser.add_argument("--vessel", default="simplified_phantom")
     parser.add_argument("--tries", type=int, default=10)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--fidelity", choices=fidelities.names(), default=fidelities.DEFAULT,
+                        help="the presets' numerical settings (default: converged)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     log = sys.stderr if args.json else sys.stdout
     vessel = vessels.load(args.vessel)
-    config = config_for_vessel(vessel)
+    fidelity = args.fidelity
+    config = config_for_vessel(vessel, SceneConfig(wire=wires.preset("paper", fidelity=fidelity)))
     started = time.perf_counter()
     cantilever = cantilever_errors(config.wire)
     torque = torque_error(vessel, config)
@@ -377,16 +394,17 @@ def main() -> None:
     steer = steering(vessel, config, args.tries, args.seed)
     escape_radii, escape_surface, escape_force = escape(vessel, config)
     table = segment_table(vessel, config)
-    unhealthy, episodes = robustness()
-    loads = tip_loads()
-    tapered = tapered_cantilever_errors()
-    torsion = tapered_torsion_errors()
-    rolls = torque_rolls()
-    gripped = gripped_rolls()
-    pushes = push_robustness(vessel)
-    by_roll = penetration_by_roll(vessel, pushes)
-    inertia = inertia_independence()
+    unhealthy, episodes = robustness(fidelity=fidelity)
+    loads = tip_loads(fidelity)
+    tapered = tapered_cantilever_errors(fidelity=fidelity)
+    torsion = tapered_torsion_errors(fidelity=fidelity)
+    rolls = torque_rolls(fidelity)
+    gripped = gripped_rolls(fidelity)
+    pushes = push_robustness(vessel, fidelity)
+    by_roll = penetration_by_roll(vessel, pushes, fidelity)
+    inertia = inertia_independence(fidelity)
     result = {
+        "fidelity": fidelity,
         "cantilever_rel_error": max(cantilever["real_mass"], cantilever["mass_scaled"]),
         "torque_error_deg": torque,
         "steer_success_a": steer["A"],
@@ -418,7 +436,8 @@ def main() -> None:
         "push_robustness": pushes,
         "inertia_independence": inertia,
     }
-    print(f"vessel {vessel.name}, wire {config.wire.num_segments} segments, dt "
+    print(f"fidelity {fidelity}; vessel {vessel.name}, paper wire {config.wire.num_segments} "
+          "segments, dt "
           f"{GuidewirePhysics.from_vessel(vessel, config).model.opt.timestep * 1e3:g} ms, "
           f"load average {os.getloadavg()[0]:.2f}", file=log)
     print(f"cantilever: {cantilever}", file=log)
@@ -464,7 +483,8 @@ def main() -> None:
         for name, row in rows.items():
             for mode in ("raw", "task"):
                 r = row[mode]
-                print(f"push {force} N {name} {mode}: wall force {r['max_wall_force_n']:.2f} N, "
+                print(f"push {force} N {name} {mode}: wall force {r['max_wall_force_n']:.2f} N "
+                      f"(largest control-step mean {r['max_mean_wall_force_n']:.2f} N), "
                       f"penetration {r['max_penetration_over_radius']:.3f} r, left lumen "
                       f"{r['left_lumen']}, NaN {r['nan']}, max push {r['max_push_n']:.2f} N, "
                       f"ended {r['ended_at_s']:.2f} s, push_force stop "

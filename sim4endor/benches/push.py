@@ -8,7 +8,9 @@ the servo saturates once its target leads the carriage by limit / stiffness). It
   contact distance (``contact.dist`` < 0; :meth:`GuidewirePhysics.wall_contact_distances`),
   so it is measured against the collision geometry, not the nominal lumen;
 * the largest total wall force (N, read every physics step; on a blow-up, up to the step
-  that diverged), whether any wire point (its axis) left the nominal lumen by more than
+  that diverged) and the largest mean of it over a control step (the quasi-static force, as
+  the task's tip-force limit reads it: the force of one physics step includes the impacts of
+  the wire's scaled mass), whether any wire point (its axis) left the nominal lumen by more than
   ``escape_tolerance`` (:func:`sim4endor.benches.validation.escape_depth`; a non-finite state
   counts as having left, since MuJoCo resets it and the wire can no longer be located), and
   whether the state became non-finite or MuJoCo warned.
@@ -36,6 +38,7 @@ class PushResult:
     max_penetration: float
     wire_radius: float
     max_wall_force: float
+    max_mean_wall_force: float
     max_push: float
     max_escape: float
     left_lumen: bool
@@ -82,7 +85,7 @@ def push_test(
     tolerance = wire.radius if escape_tolerance is None else escape_tolerance
     substeps = max(1, round(control_period / physics.model.opt.timestep))
     v_ins = physics.max_speeds()[0]
-    penetration = force = escape = push = 0.0
+    penetration = force = mean_force = escape = push = 0.0
     finite, stopped, time = True, False, 0.0
     while physics.data.time < duration and not stopped:
         angle = physics.driver_targets()[1]
@@ -90,6 +93,7 @@ def push_test(
             physics.apply_increments(0.0, rotation - angle, control_period)
         else:
             physics.apply_increments(v_ins * control_period, 0.0, control_period)
+        total = 0.0
         for _ in range(substeps):
             try:
                 physics.step()
@@ -99,8 +103,10 @@ def push_test(
             distances = physics.wall_contact_distances()
             if distances.size:
                 penetration = max(penetration, -float(distances.min()))
+            total += physics.wall_contact_force()
             force = max(force, physics.wall_contact_force())
             time = float(physics.data.time)  # MuJoCo resets the time of a diverged state
+        mean_force = max(mean_force, total / substeps)
         if not finite or not physics.is_finite():
             finite = False
             break
@@ -109,7 +115,7 @@ def push_test(
         stopped = stop_push_force is not None and physics.insertion_force() > stop_push_force
     return PushResult(
         force_limit=force_limit, max_penetration=penetration, wire_radius=wire.radius,
-        max_wall_force=force, max_push=push, max_escape=escape,
+        max_wall_force=force, max_mean_wall_force=mean_force, max_push=push, max_escape=escape,
         left_lumen=escape > tolerance or not finite, finite=finite,
         warnings=tuple(physics.warnings()), sim_time=time, stopped=stopped,
     )

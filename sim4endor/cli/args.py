@@ -9,6 +9,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from sim4endor.models.fidelity import FIDELITIES
 from sim4endor.observations import OBSERVATION_SETS
 from sim4endor.rl.config import MAX_SEED, EnvConfig
 
@@ -88,6 +89,11 @@ def add_task_arguments(parser: argparse.ArgumentParser, *, evaluation_split: boo
                             "secondary curve of 15-60 deg centred 4-10 mm from the end (e.g. "
                             "2,60,7,40), or J (default: the tip a given run or policy was "
                             "trained with, else the preset's shape)")
+    group.add_argument("--fidelity", choices=list(FIDELITIES),
+                       help="the wire's numerical settings: converged (default: trajectories "
+                            "that do not depend on the wire's artificial mass) or fast (the "
+                            "x1e4 wire, about twice as fast, for exploring; for the paper wire "
+                            "the published model of Table I)")
     group.add_argument("--pool-seed", type=seed, metavar="SEED",
                        help="generated trees: seed of the first training tree")
     group.add_argument("--pool-size", type=positive_int, metavar="N",
@@ -107,8 +113,8 @@ def task_arguments(args: argparse.Namespace) -> dict[str, Any]:
     A vessel given as an existing folder is stored as an absolute path, so a run's saved
     config still finds it from another working directory.
     """
-    names = ("vessel", "target", "wire", "tip", "pool_seed", "pool_size", "eval_pool_seed",
-             "observations")
+    names = ("vessel", "target", "wire", "tip", "fidelity", "pool_seed", "pool_size",
+             "eval_pool_seed", "observations")
     given = {name: getattr(args, name, None) for name in names}
     if given["vessel"] is not None and Path(given["vessel"]).exists():
         given["vessel"] = str(Path(given["vessel"]).resolve())

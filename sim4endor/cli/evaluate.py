@@ -145,8 +145,10 @@ def _run_vessel(args: argparse.Namespace) -> int:
 
 
 def _with_flags(config: SuiteConfig, args: argparse.Namespace) -> SuiteConfig:
-    """``config`` with the ``--wire``, ``--tip`` and ``--seed`` given on the command line."""
-    given = {name: getattr(args, name) for name in ("wire", "tip") if getattr(args, name)}
+    """``config`` with the ``--wire``, ``--tip``, ``--fidelity`` and ``--seed`` given on the
+    command line."""
+    given = {name: getattr(args, name) for name in ("wire", "tip", "fidelity")
+             if getattr(args, name)}
     if args.seed is not None:
         given["seed"] = args.seed
     return dataclasses.replace(config, **given)

@@ -11,8 +11,10 @@ Example:
     >>> wire = wires.preset("workhorse", tip=wires.TipShape(0.0015, math.radians(60)))
     ... # doctest: +SKIP
 
-``paper`` is ``GuidewireConfig()`` unchanged, the default of every task, so the paper's
-results stay reproducible. The others model real wire classes (workhorse ≈ 1 gf,
+``paper`` is the paper's wire (``GuidewireConfig()``'s physics), the phantoms' default; at
+fidelity ``"fast"`` it is ``GuidewireConfig()`` unchanged, the published model of Table I.
+Every preset comes at a fidelity (:mod:`sim4endor.models.fidelity`): ``"converged"`` by
+default, ``"fast"`` for exploring. The others model real wire classes (workhorse ≈ 1 gf,
 intermediate 3 gf, stiff CTO 12.4 gf tip load) with a tapered core whose distal diameter is
 derived from the rated tip load, and a coat whose friction is data too (``[coatings]``:
 the workhorse is hydrophilic, 0.03; the others hydrophobic, 0.1); see ``wires.toml`` and
@@ -31,6 +33,7 @@ from importlib import resources
 from typing import Any, TypeVar
 
 from sim4endor.errors import Sim4EndoRError
+from sim4endor.models import fidelity as fidelities
 from sim4endor.models.guidewire import INCH, SECONDARY_CURVE_LENGTH, GuidewireConfig
 
 #: The preset that reproduces the paper (``GuidewireConfig()``).
@@ -54,27 +57,6 @@ SECONDARY_ANGLE_RANGE = (math.radians(15.0), math.radians(60.0))
 J_LENGTH = 0.003
 J_ANGLE = math.radians(150.0)
 _MM = 1e-3
-#: Bodies per kinematic chain of the catalogue's wires (GuidewireConfig.chain_bodies): a
-#: numerical setting, not a property of the wire. It makes the complex anatomies about 1.7x
-#: faster and keeps every validation target (docs/performance.md, docs/guidewire.md); the
-#: paper preset keeps one chain, bit for bit the published model.
-CHAIN_BODIES = 6
-#: Physics time step of the catalogue's wires (GuidewireConfig.max_timestep), numerical like
-#: CHAIN_BODIES. At 5 ms MuJoCo clamps the contacts' time constant to 10 ms: pushed at the
-#: driver's 0.5 N into the simplified phantom's dead end, the workhorse overlapped the hulls by
-#: up to 1.13 wire radii over four driver rolls, and at 5 N two of the three presets blew up.
-#: At 2.5 ms none overlapped the hulls at any roll and none blew up (docs/guidewire.md). It
-#: costs twice the steps; the paper preset keeps 5 ms, bit for bit the published model.
-CATALOGUE_TIMESTEP = 0.0025
-#: Friction cone of the catalogue's wires (GuidewireConfig.friction_cone), numerical like
-#: CHAIN_BODIES. With MuJoCo's pyramidal cones a wire held still in a bent lumen never came to
-#: rest: its tip wandered over 1-3 mm within 4 s at a hydrophilic coat's friction, and
-#: doubling the joints' armature moved it 0.31 mm. With elliptic cones the tip stays within
-#: 0.004 mm and the armature moves it 0.003 mm (docs/guidewire.md, "Friction cones"). The
-#: paper preset keeps the pyramidal cones, bit for bit the published model.
-CATALOGUE_FRICTION_CONE = "elliptic"
-
-
 _Value = TypeVar("_Value")
 
 
@@ -206,7 +188,8 @@ def _named(table: Mapping[str, _Value], name: str, what: str) -> _Value:
 
 def _entry(name: str, raw: Mapping[str, Any], materials: Mapping[str, Any]) -> WireEntry:
     if name == PAPER:
-        return WireEntry(name, raw["description"], GuidewireConfig())
+        numerics = fidelities.numerics(fidelities.DEFAULT, name)
+        return WireEntry(name, raw["description"], numerics.apply(GuidewireConfig()))
     material = materials[raw["core_material"]]
     profile = tuple((s * _MM, d * _MM) for s, d in raw["core_profile_mm"])
     shape = TipShape.degrees(**raw["tip_shape"])
@@ -219,12 +202,10 @@ def _entry(name: str, raw: Mapping[str, Any], materials: Mapping[str, Any]) -> W
         density=material["density_kg_m3"],
         tip_stiffness_factor=1.0,  # the taper makes the tip soft
         friction=coating_friction(raw["coating"]),
-        chain_bodies=CHAIN_BODIES,
-        max_timestep=CATALOGUE_TIMESTEP,
-        friction_cone=CATALOGUE_FRICTION_CONE,
     )
     return WireEntry(
-        name=name, description=raw["description"], config=shaped(config, shape),
+        name=name, description=raw["description"],
+        config=fidelities.numerics(fidelities.DEFAULT, name).apply(shaped(config, shape)),
         rated_tip_load_gf=float(raw["rated_tip_load_gf"]), rating_source=raw["rating_source"],
         modelled_on=raw["modelled_on"], core_material=raw["core_material"],
         coating=raw["coating"],
@@ -300,41 +281,57 @@ def parse_tip(text: str) -> TipShape | str:
         ) from None
 
 
-def preset(name: str, tip: TipShape | str | None = None) -> GuidewireConfig:
-    """Returns the wire of preset ``name``, its tip shaped by ``tip`` if given.
+def preset(name: str, tip: TipShape | str | None = None,
+           fidelity: str = fidelities.DEFAULT) -> GuidewireConfig:
+    """Returns the wire of preset ``name``, its tip shaped by ``tip`` if given, with the
+    numerical settings of ``fidelity`` (:mod:`sim4endor.models.fidelity`).
 
     Args:
         name: One of :func:`names`.
         tip: ``None`` keeps the preset's shape; a :class:`TipShape` or ``"J"`` reshapes it.
+        fidelity: ``"converged"`` (default) or ``"fast"``.
 
     Raises:
         WireCatalogueError: For an unknown name or a bad tip.
+        sim4endor.models.fidelity.FidelityError: For an unknown fidelity.
     """
-    wire = entry(name).config
+    wire = fidelities.numerics(fidelity, name).apply(entry(name).config)
     return wire if tip is None else shaped(wire, tip)
 
 
-def resolve(wire: str | GuidewireConfig | Mapping[str, Any] | None) -> GuidewireConfig:
+def resolve(wire: str | GuidewireConfig | Mapping[str, Any] | None,
+            fidelity: str | None = None) -> GuidewireConfig:
     """A user's wire setting as a config: a preset name, a config, or a mapping.
 
     A mapping holds :class:`GuidewireConfig` fields, optionally with ``"preset"`` (the base,
     default ``paper``), ``"coating"`` (a name of :func:`coatings`: sets ``friction``, so
     not both) and ``"tip"`` (a :class:`TipShape`, ``"J"``, the command line's ``"5,60"``
     in mm and degrees, or ``{"length":, "angle":}`` in m and rad). ``None`` gives ``paper``.
+    A preset, named or as a mapping's base, takes the numerical settings of ``fidelity``
+    (:mod:`sim4endor.models.fidelity`; ``None``: the default, ``"converged"``); a
+    mapping's own fields override them. A config is returned as it is: it carries its own.
 
     Raises:
-        WireCatalogueError: For an unknown preset, field, coating or tip, or a coating and a
-            friction both given.
+        WireCatalogueError: For an unknown preset, field, coating or tip, a coating and a
+            friction both given, or a fidelity given with a config.
+        sim4endor.models.fidelity.FidelityError: For an unknown fidelity.
     """
-    if wire is None:
-        return entry(PAPER).config
     if isinstance(wire, GuidewireConfig):
+        if fidelity is not None:
+            raise WireCatalogueError(
+                f"A GuidewireConfig carries its own numerical settings, so fidelity "
+                f"{fidelity!r} cannot apply to it; name a preset (or a mapping with 'preset') "
+                "instead, or set the config's fields."
+            )
         return wire
+    fidelity = fidelity or fidelities.DEFAULT
+    if wire is None:
+        return preset(PAPER, fidelity=fidelity)
     if isinstance(wire, str):
-        return preset(wire)
+        return preset(wire, fidelity=fidelity)
     if isinstance(wire, Mapping):
         fields = dict(wire)
-        base = preset(fields.pop("preset", PAPER))
+        base = preset(fields.pop("preset", PAPER), fidelity=fidelity)
         tip = fields.pop("tip", None)
         coating = fields.pop("coating", None)
         valid = {f.name for f in dataclasses.fields(GuidewireConfig)}

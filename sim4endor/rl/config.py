@@ -101,6 +101,8 @@ class EnvConfig:
         tip: the shape a cardiologist bends into ``wire``'s tip (:func:`sim4endor.models.
             wires.parse_tip`): ``"LENGTH_MM,ANGLE_DEG"``, e.g. ``"3,75"``, or ``"J"``
             (``None``: the preset's own shape). Needs ``wire``.
+        fidelity: the numerical settings of the wire (:mod:`sim4endor.models.fidelity`):
+            ``converged`` or ``fast`` (``None``: the default, ``converged``).
         pool_seed: generated-tree domains: seed of the first training tree.
         pool_size: generated-tree domains: number of training trees.
         eval_pool_seed: generated-tree domains: seed of the first evaluation tree; a seed at
@@ -122,6 +124,7 @@ class EnvConfig:
     target: str | None = None
     wire: str | None = None
     tip: str | None = None
+    fidelity: str | None = None
     pool_seed: int | None = None
     pool_size: int | None = None
     eval_pool_seed: int | None = None
@@ -147,6 +150,12 @@ class EnvConfig:
                 parse_tip(self.tip)
             except WireCatalogueError as exc:
                 raise ConfigError(f"env.tip: {exc}") from None
+        if self.fidelity is not None:
+            from sim4endor.models.fidelity import FIDELITIES
+
+            if self.fidelity not in FIDELITIES:
+                raise ConfigError(f"env.fidelity must be one of {list(FIDELITIES)}, got "
+                                  f"{self.fidelity!r}.")
         if self.target_weights is not None and self.domain != "coronary":
             raise ConfigError(f"env.target_weights weigh the coronary domain's targets; "
                               f"domain {self.domain!r} draws none.")
@@ -182,7 +191,7 @@ class EnvConfig:
             wire = {"preset": self.wire,
                     "tip": tip if isinstance(tip, str) else tip.as_mapping()}
         given = {"vessel": self.vessel, "target": self.target, "wire": wire,
-                 "pool_seed": pool_seed, "pool_size": self.pool_size,
+                 "fidelity": self.fidelity, "pool_seed": pool_seed, "pool_size": self.pool_size,
                  "target_weights": None if evaluation else self.target_weights}
         kwargs.update({key: value for key, value in given.items() if value is not None})
         return kwargs

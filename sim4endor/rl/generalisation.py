@@ -66,6 +66,8 @@ class SuiteConfig:
             ``None``: the shape the evaluated run was trained with (:meth:`for_run`; the
             preset's own when the run named none), so a policy meets the tip whose response
             to a roll it learnt; the reference rows use the same wire.
+        fidelity: The wire's numerical settings (``EnvConfig.fidelity``: ``converged`` or
+            ``fast``; ``None``: the default, ``converged``).
         trials: Episodes per case.
         seed: Start-state seed of every case's episodes.
         max_steps: Step cap per episode (the coronary domain's 40 s at 20 Hz; the tasks'
@@ -78,6 +80,7 @@ class SuiteConfig:
     first_seed: int = 1000
     wire: str = "workhorse"
     tip: str | None = None
+    fidelity: str | None = None
     trials: int = 1
     seed: int = baselines.REPORT_SEED
     max_steps: int = 800
@@ -89,7 +92,8 @@ class SuiteConfig:
 
     def base_env(self, observations: str) -> EnvConfig:
         """The environment every case derives from: ``observations`` and the suite's wire."""
-        return EnvConfig(observations=observations, wire=self.wire, tip=self.tip)
+        return EnvConfig(observations=observations, wire=self.wire, tip=self.tip,
+                         fidelity=self.fidelity)
 
 
 @dataclasses.dataclass(frozen=True)
