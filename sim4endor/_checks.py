@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from typing import Any
 
 _RULES: dict[str, tuple[Callable[[float], bool], str]] = {
     "positive": (lambda v: v > 0, "> 0"),
@@ -48,3 +49,17 @@ def require(config: object, prefix: str, error: type[Exception],
             if not all(is_number(v) and test(v) for v in items):
                 where = f"{prefix}.{name}" if prefix else name
                 raise error(f"{where} must be {text}, got {value!r}.")
+
+
+def check_schema_version(data: Mapping[str, Any], supported: int, source: str,
+                         error: type[Exception]) -> None:
+    """Raises ``error`` naming ``source`` and both versions if the file content ``data`` was
+    written in a newer layout than ``supported`` (a file without ``schema_version`` is 1)."""
+    version = data.get("schema_version", 1)
+    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+        raise error(f"{source}: schema_version must be a positive integer, got {version!r}.")
+    if version > supported:
+        raise error(
+            f"{source} has layout version {version}, newer than the version {supported} this "
+            "sim4endor reads: upgrade sim4endor, or rebuild the folder with this one."
+        )

@@ -136,6 +136,7 @@ class NavigationEnv(gymnasium.Env[Any, np.ndarray]):
         else:
             self.observation_space = state
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        self._episode_over = True  # until the first reset
 
     def _observation(self, observation: Mapping[str, np.ndarray]) -> Any:
         state = np.concatenate(
@@ -153,17 +154,29 @@ class NavigationEnv(gymnasium.Env[Any, np.ndarray]):
         if seed is not None:
             self.dm_env.task.reseed(seed)
         timestep = self.dm_env.reset()
+        self._episode_over = False
         return (self._observation(timestep.observation),
                 {"tip_position": self.dm_env.physics.tip_position()})
 
     def step(
         self, action: np.ndarray
     ) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
-        """Applies one control step; returns (obs, reward, terminated, truncated, info)."""
+        """Applies one control step; returns (obs, reward, terminated, truncated, info).
+
+        Raises:
+            gymnasium.error.ResetNeeded: Before the first :meth:`reset` and after an episode
+                ended (``terminated`` or ``truncated``), as gymnasium's own environments do.
+        """
+        if self._episode_over:
+            raise gymnasium.error.ResetNeeded(
+                "Cannot call step() before reset() nor after the episode ended (terminated or "
+                "truncated): call reset() to start a new episode."
+            )
         # Not cast here: the task rejects text and bools, which a float cast would accept.
         timestep = self.dm_env.step(action)
         terminated = bool(timestep.last() and timestep.discount == 0.0)
         truncated = bool(timestep.last() and not terminated)
+        self._episode_over = bool(timestep.last())
         # Numbers as numpy scalars: TorchRL's info reader needs a dtype.
         info = {
             k: np.asarray(v) if k in NUMERIC_INFO_KEYS else v

@@ -18,7 +18,7 @@ import numpy as np
 
 from sim4endor import assets
 from sim4endor.errors import Sim4EndoRError
-from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph
 from sim4endor.vessels.manifest import MANIFEST_FILE, Manifest
 
 logger = logging.getLogger(__name__)
@@ -26,7 +26,8 @@ logger = logging.getLogger(__name__)
 CENTERLINE_FILE = "centerline.json"
 SCENE_FILE = "scene.xml"
 
-__all__ = ["CenterlineGraph", "Manifest", "Vessel", "VesselNotFoundError", "load", "names"]
+__all__ = ["CenterlineGraph", "Manifest", "Vessel", "VesselFolderError", "VesselNotFoundError",
+           "load", "names"]
 
 
 class VesselNotFoundError(Sim4EndoRError, LookupError):
@@ -117,17 +118,31 @@ def resolve(name_or_path: str | Path) -> Path:
     )
 
 
+class VesselFolderError(Sim4EndoRError, ValueError):
+    """Raised for a vessel folder whose files disagree; the message names the file and what."""
+
+
 def load(name_or_path: str | Path) -> Vessel:
-    """Loads a vessel by name (e.g. ``"simplified_phantom"``) or by folder path."""
+    """Loads a vessel by name (e.g. ``"simplified_phantom"``) or by folder path.
+
+    Raises:
+        VesselNotFoundError: If it names no vessel folder.
+        VesselFolderError: If the manifest names a target, or the centerline lacks an inlet,
+            that the tasks would look up in the centerline.
+    """
     root = resolve(name_or_path)
     manifest = Manifest.load(root)
+    centerline = CenterlineGraph.load(root / CENTERLINE_FILE)
+    missing = [name for name in (INLET_LABEL, *manifest.targets) if name not in centerline.labels]
+    if missing:
+        raise VesselFolderError(
+            f"{root}: {CENTERLINE_FILE} has no node labelled {missing} (it labels "
+            f"{sorted(centerline.labels)}), which {MANIFEST_FILE} names as inlet and targets; "
+            "rebuild the folder with the command in its README."
+        )
     failed = manifest.below_acceptance
     if failed:
         # Built with allow_below_acceptance: every command that loads it says so.
         logger.warning("vessel %s (%s): %s; the wire may not reach its targets", manifest.name,
                        root, failed)
-    return Vessel(
-        root=root,
-        manifest=manifest,
-        centerline=CenterlineGraph.load(root / CENTERLINE_FILE),
-    )
+    return Vessel(root=root, manifest=manifest, centerline=centerline)

@@ -19,6 +19,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 
 from sim4endor._atomic import atomic_write_text
+from sim4endor._checks import check_schema_version
 from sim4endor.errors import Sim4EndoRError
 
 FloatArray = NDArray[np.float64]
@@ -364,6 +365,7 @@ class CenterlineGraph:
     @classmethod
     def from_json_dict(cls, data: Mapping[str, object], source: str = "<dict>") -> CenterlineGraph:
         """Builds a graph from ``centerline.json`` content."""
+        check_schema_version(data, SCHEMA_VERSION, source, CenterlineError)
         missing = [k for k in ("nodes", "radii", "edges") if k not in data]
         if missing:
             raise CenterlineError(f"{source}: missing keys {missing}.")

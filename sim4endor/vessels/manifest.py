@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from sim4endor._atomic import atomic_write_text
+from sim4endor._checks import check_schema_version
 from sim4endor.errors import Sim4EndoRError
 
 MANIFEST_FILE = "manifest.json"
@@ -108,6 +109,7 @@ class Manifest:
             ) from None
         except json.JSONDecodeError as exc:
             raise ManifestError(f"{path} is not valid JSON: {exc}") from None
+        check_schema_version(data, SCHEMA_VERSION, str(path), ManifestError)
         try:
             inlet = Inlet(
                 position=tuple(data["inlet"]["position"]),
