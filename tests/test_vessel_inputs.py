@@ -111,6 +111,21 @@ def test_inward_wound_mesh_is_turned_outward_with_fresh_normals() -> None:
     assert np.all(np.einsum("ij,ij->i", radial[side], mesh.face_normals[side, :2]) > 0)
 
 
+@pytest.mark.parametrize("units", ["m", "mm"])
+def test_an_inward_wound_lumen_with_open_ends_is_turned_outward(units: str) -> None:
+    # No signed volume to go by: until 2026-12-06 such a lumen kept its inward normals, so
+    # its wall would have grown into it (a lumen whose repair opened an edge was refused with
+    # an absurd radius instead).
+    mesh = tube()
+    mesh.update_faces(np.abs(mesh.face_normals[:, 2]) < 0.5)  # drop both caps
+    mesh.remove_unreferenced_vertices()
+    mesh.apply_scale(1e3 if units == "mm" else 1.0)
+    inward = trimesh.Trimesh(mesh.vertices, mesh.faces[:, ::-1], process=False)
+    prepared = prepare_lumen(inward, units=units).mesh
+    radial = prepared.triangles_center[:, :2]
+    assert np.all(np.einsum("ij,ij->i", radial, prepared.face_normals[:, :2]) > 0)
+
+
 def test_open_ends_are_kept_not_filled() -> None:
     mesh = tube()
     keep = np.abs(mesh.face_normals[:, 2]) < 0.5  # drop both caps

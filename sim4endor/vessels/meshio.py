@@ -252,12 +252,33 @@ def capped(prepared: PreparedLumen) -> trimesh.Trimesh:
     return _fill_loops(prepared.mesh, prepared.end_loops)
 
 
+def _faces_inward(mesh: trimesh.Trimesh, samples: int = 256, seed: int = 0) -> bool:
+    """Whether a lumen surface's faces point into the lumen.
+
+    A closed surface says so by its signed volume. An open one (a lumen with open vessel
+    ends, or one that merging, repair or decimation left with a stray edge) by rays: from a
+    seeded sample of faces, a ray against the normal of an outward surface crosses the lumen
+    and meets the wall again, one along it leaves the vessel; inward, the other way round.
+    """
+    if mesh.is_watertight:
+        return bool(mesh.volume < 0)
+    rng = np.random.default_rng(seed)
+    faces = rng.choice(len(mesh.faces), size=min(samples, len(mesh.faces)), replace=False)
+    origins, normals = mesh.triangles_center[faces], mesh.face_normals[faces]
+    hits = []
+    for direction in (-normals, normals):
+        triangles, rays = mesh.ray.intersects_id(origins, direction, multiple_hits=True)[:2]
+        hits.append(len(np.unique(rays[triangles != faces[rays]])))  # not its own face
+    across, away = hits
+    return away > across
+
+
 def _outward_in_metres(mesh: trimesh.Trimesh, scale: float) -> trimesh.Trimesh:
-    """``mesh`` scaled to metres, its winding made consistent and, if closed, outward."""
+    """``mesh`` scaled to metres, its winding made consistent and outward."""
     mesh = mesh.copy()
     mesh.apply_scale(scale)
     trimesh.repair.fix_winding(mesh)
-    if mesh.is_watertight and mesh.volume < 0:
+    if _faces_inward(mesh):
         # A new mesh, not Trimesh.invert(): in trimesh 5.2 invert() leaves the cached face
         # normals pointing against the new winding, and the wall would then grow into the lumen.
         mesh = trimesh.Trimesh(mesh.vertices, np.ascontiguousarray(mesh.faces[:, ::-1]),
