@@ -1,4 +1,4 @@
-"""Atomic output: a folder or file appears complete, or not at all.
+"""Atomic output: a folder or file appears complete, or not at all, and one writer at a time.
 
 Staging files and folders come from :mod:`tempfile`, which makes them private (0600 / 0700);
 they get the permissions of ordinary new files (as the umask allows) before they are renamed
@@ -8,11 +8,73 @@ into place, so outputs written atomically look like every other output.
 from __future__ import annotations
 
 import contextlib
+import functools
+import inspect
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any, ParamSpec, TypeVar
+
+import filelock
+
+from sim4endor.errors import Sim4EndoRError
+
+_Params = ParamSpec("_Params")
+_Result = TypeVar("_Result")
+
+
+class OutputBusyError(Sim4EndoRError, RuntimeError):
+    """Raised when another process is writing the output folder; the message names it."""
+
+
+@contextlib.contextmanager
+def exclusive_output(target: Path) -> Iterator[None]:
+    """Holds ``target`` (an output folder) for this process: a second writer of it, while the
+    first holds it, is refused at once with :class:`OutputBusyError` instead of interleaving
+    its files with the first's (two runs into one folder doubled its logs' rows).
+
+    The lock is a hidden file beside ``target`` (an operating-system lock, released when the
+    process ends, however it ends), removed again when the first writer is done.
+    """
+    target = Path(target)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    path = target.parent / f".{target.name}.lock"
+    lock = filelock.FileLock(path, timeout=0)
+    try:
+        lock.acquire()
+    except filelock.Timeout:
+        raise OutputBusyError(
+            f"{target} is being written by another sim4endor process; wait for it to finish "
+            "or choose another output folder."
+        ) from None
+    try:
+        yield
+    finally:
+        # Removed before the release: a writer arriving now takes a lock of its own on a
+        # new file, once this one has written everything.
+        path.unlink(missing_ok=True)
+        lock.release()
+
+
+def holds_output(parameter: str) -> Callable[[Callable[_Params, _Result]],
+                                            Callable[_Params, _Result]]:
+    """Decorates a function that writes the folder passed as ``parameter``: it runs under
+    :func:`exclusive_output` of that folder."""
+
+    def decorate(function: Callable[_Params, _Result]) -> Callable[_Params, _Result]:
+        signature = inspect.signature(function)
+
+        @functools.wraps(function)
+        def wrapper(*args: _Params.args, **kwargs: _Params.kwargs) -> _Result:
+            target: Any = signature.bind(*args, **kwargs).arguments[parameter]
+            with exclusive_output(Path(target)):
+                return function(*args, **kwargs)
+
+        return wrapper
+
+    return decorate
 
 
 @contextlib.contextmanager

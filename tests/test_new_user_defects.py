@@ -8,10 +8,12 @@ from pathlib import Path
 
 import gymnasium
 import pytest
+import trimesh
 from cli_helpers import assert_refused, run_cli, snapshot
 from guidewire_helpers import write_tube_vessel
 
 from sim4endor import vessels
+from sim4endor._atomic import exclusive_output
 from sim4endor.envs.gym import NavigationEnv
 from sim4endor.vessels import VesselFolderError
 from sim4endor.vessels.centerline import CenterlineError
@@ -73,3 +75,25 @@ def test_gymnasium_step_after_the_episode_ended_says_to_reset() -> None:
         env.step([1.0, 0.0])
     env.reset()
     env.step([1.0, 0.0])  # a new episode steps again
+
+
+@pytest.mark.parametrize("command", ["train", "vessel build", "export", "train generalist"])
+def test_a_second_writer_of_an_output_folder_is_refused_while_the_first_holds_it(
+        tmp_path: Path, tube: Path, command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    # Two `train` runs into one --out both exited 0, and the run's logs held every row twice.
+    out = tmp_path / "out"
+    mesh = tmp_path / "tube.stl"
+    trimesh.creation.cylinder(radius=1.5, height=20.0, sections=24).export(mesh)
+    args = {
+        "train": ["train", "sac", "--domain", "simplified_phantom", "--task", "task_a",
+                  "--frames", "10", "--out", out],
+        "vessel build": ["vessel", "build", mesh, "--name", "t", "--out", out, "--units", "mm",
+                         "--no-progress"],
+        "export": ["export", tube, "--out", out],
+        "train generalist": ["train", "generalist", "--out", out],
+    }[command]
+    with exclusive_output(out):
+        status, err = run_cli(args, capsys)
+    assert_refused(status, err, str(out), "another sim4endor process")
+    assert not out.exists() or not any(out.iterdir())
+    assert not list(tmp_path.glob(".*.lock"))  # the first writer's lock is gone with it

@@ -139,9 +139,14 @@ def test_a_raw_push_far_past_the_limit_stays_finite_and_in_the_lumen(name: str,
                                                                      force: float) -> None:
     result = push.push_test(vessels.load("simplified_phantom"), wires.preset(name), force)
     assert result.finite and not result.warnings and not result.left_lumen
-    # The wall holds a buckled wire with several times the push; the soft workhorse coiled
-    # at 2 N (200 times its rated tip load) is held with 24 N.
-    assert result.max_mean_wall_force <= (15.0 if name == "workhorse" else 10.0) * force
+    # The wall holds a buckled wire with several times the push (measured 3.2 / 12.0 / 4.1 /
+    # 4.6 times at 2 N, paper / workhorse / intermediate / stiff; 5.1 / 9.2 / 7.2 / 7.1 at 5
+    # N), and no pinched segment carries kilonewtons (at the fast fidelity the paper wire
+    # went NaN at 5 N with 868 kN, the workhorse 441 N). The soft workhorse coiled at 2 N,
+    # 200 times its rated tip load, presses the dead end's walls with 24 N all along the
+    # coil: the one case above 10 times the push.
+    bound = 12.5 if (name, force) == ("workhorse", 2.0) else 10.0
+    assert result.max_wall_force <= bound * force
 
 
 def test_a_stronger_driver_ends_the_episode_with_push_force() -> None:

@@ -24,7 +24,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from sim4endor._atomic import atomic_write_bytes, atomic_write_text
+from sim4endor._atomic import atomic_write_bytes, atomic_write_text, holds_output
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl.algorithms import Agent
 from sim4endor.rl.config import TrainConfig
@@ -75,6 +75,7 @@ def deterministic_policy(config: TrainConfig, agent: Agent) -> nn.Module:
     return _SquashedPolicy(params_module.module, space.low, space.high, gaussian=True).eval()
 
 
+@holds_output("out_dir")
 def export_policy(
     source: Path,
     out_dir: Path,

@@ -38,7 +38,7 @@ import torch
 import yaml
 from tqdm.auto import tqdm
 
-from sim4endor._atomic import atomic_directory, atomic_write_text
+from sim4endor._atomic import atomic_directory, atomic_write_text, exclusive_output
 from sim4endor._checks import require
 from sim4endor.assets import RECIPE_FILE, policies_dir, recipe_names
 from sim4endor.errors import Sim4EndoRError
@@ -279,7 +279,8 @@ class RecipeRun:
         self.progress = progress
         self.backend = backend
         self.ray_address = ray_address
-        self._claim_folder()
+        with exclusive_output(self.out):
+            self._claim_folder()
 
     def _claim_folder(self) -> None:
         """Refuses a folder that is not this recipe's run; writes ``recipe.yaml``."""
@@ -320,7 +321,11 @@ class RecipeRun:
 
     def run(self) -> dict[str, Any]:
         """Runs the stages not yet done; returns the run's summary (stage records, total
-        seconds, the policy folder)."""
+        seconds, the policy folder). A second run of the same folder at once is refused."""
+        with exclusive_output(self.out):
+            return self._run()
+
+    def _run(self) -> dict[str, Any]:
         # The networks are small: one thread clones fastest, and several in each of a few
         # processes sharing the cores slow each other twentyfold (measured).
         torch.set_num_threads(self.recipe.policy.torch_threads)

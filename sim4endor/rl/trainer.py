@@ -49,7 +49,7 @@ from tqdm.auto import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
 from sim4endor import _json as strict_json
-from sim4endor._atomic import atomic_directory, atomic_write_text
+from sim4endor._atomic import atomic_directory, atomic_write_text, holds_output
 from sim4endor.errors import Sim4EndoRError, caused_by_interrupt
 from sim4endor.rl import baselines, checkpoint, ray_backend
 from sim4endor.rl.algorithms import Agent, build_agent, learner_device
@@ -115,6 +115,7 @@ class RunDirError(Sim4EndoRError):
     """A run folder holds a different run, or is not a run folder at all."""
 
 
+@holds_output("run_dir")
 def train(
     config: TrainConfig,
     run_dir: Path,

@@ -32,7 +32,7 @@ import numpy as np
 import trimesh
 from tqdm.auto import tqdm
 
-from sim4endor._atomic import atomic_directory
+from sim4endor._atomic import atomic_directory, holds_output
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels import CENTERLINE_FILE, SCENE_FILE, Vessel, load
 from sim4endor.vessels.axis import AxisSamples, branch_chains, sample_axis
@@ -386,6 +386,7 @@ def _lumen_files(repairs: Mapping[str, Any]) -> str:
     return said
 
 
+@holds_output("out_dir")
 def build_vessel(
     lumen: trimesh.Trimesh,
     *,
