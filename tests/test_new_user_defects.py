@@ -4,6 +4,7 @@ audit, as that user met it, with the behaviour it has now."""
 from __future__ import annotations
 
 import json
+import shlex
 from pathlib import Path
 
 import gymnasium
@@ -12,12 +13,19 @@ import trimesh
 from cli_helpers import assert_refused, run_cli, snapshot
 from guidewire_helpers import write_tube_vessel
 
-from sim4endor import vessels
+from sim4endor import assets, suite, vessels
 from sim4endor._atomic import exclusive_output
+from sim4endor.cli import build_parser, main
+from sim4endor.rl.config import EnvConfig
 from sim4endor.envs.gym import NavigationEnv
 from sim4endor.vessels import VesselFolderError
 from sim4endor.vessels.centerline import CenterlineError
 from sim4endor.vessels.manifest import ManifestError
+
+
+@pytest.fixture(autouse=True)
+def _private_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
 
 
 @pytest.fixture()
@@ -97,3 +105,61 @@ def test_a_second_writer_of_an_output_folder_is_refused_while_the_first_holds_it
     assert_refused(status, err, str(out), "another sim4endor process")
     assert not out.exists() or not any(out.iterdir())
     assert not list(tmp_path.glob(".*.lock"))  # the first writer's lock is gone with it
+
+
+def test_render_runs_the_tasks_whole_episode_unless_told_otherwise(tube: Path) -> None:
+    # `render` stopped at 400 steps (20 s), half a coronary wire's 40 s episode.
+    from sim4endor.cli import render
+
+    env = suite.load("vessel", "navigate", {"vessel": str(tube), "target": "A",
+                                            "wire": "workhorse"})
+    assert render.step_budget(env, None) == 800
+    assert render.step_budget(env, 10) == 10
+    phantom = suite.load("simplified_phantom", "task_a")
+    assert render.step_budget(phantom, None) == 400 == render.step_budget(phantom, 1000)
+    parser = build_parser()
+    assert parser.parse_args(["render", "--out", "x.mp4"]).max_steps is None
+
+
+def test_a_runs_policy_renders_in_another_domain_without_its_tree_pool(tmp_path: Path) -> None:
+    # `render vessel navigate --vessel DIR --target T2 --policy generalist` failed: Unknown
+    # task_kwargs ['pool_seed', 'pool_size'] for vessel/navigate.
+    from sim4endor.cli.args import env_config
+    from sim4endor.rl.runs import run_config
+
+    base = run_config(assets.run_or_policy("generalist")).env
+    assert base.pool_size is not None
+    args = build_parser().parse_args(["render", "vessel", "navigate", "--vessel", "x",
+                                      "--target", "T2", "--policy", "generalist"])
+    env = env_config(args, base)
+    assert (env.domain, env.vessel, env.target) == ("vessel", "x", "T2")
+    assert env.pool_size is None and env.pool_seed is None and env.eval_pool_seed is None
+    assert (env.observations, env.wire, env.tip) == (base.observations, base.wire, base.tip)
+
+
+def test_the_documented_json_wire_is_taken_and_a_bad_one_refused_before_any_work(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    wire = '{"preset": "paper", "chain_bodies": 6}'  # as docs/performance.md shows it
+    env = EnvConfig(domain="vascular_phantom", task="task_a", wire=wire)
+    assert env.task_kwargs(0)["wire"] == {"preset": "paper", "chain_bodies": 6}
+    status, err = run_cli(["evaluate", "generalist", "--domain", "coronary", "--task",
+                           "navigate", "--wire", '{"preset": "paper", "chain_bodys": 6}'],
+                          capsys)
+    assert_refused(status, err, "chain_bodys")
+
+
+def test_vessel_check_speaks_in_words_and_a_built_folder_names_its_command(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    mesh = tmp_path / "tube.stl"
+    trimesh.creation.cylinder(radius=1.5, height=20.0, sections=24).export(mesh)
+    out = tmp_path / "built"
+    build = ["vessel", "build", str(mesh), "--name", "t", "--out", str(out), "--units", "mm",
+             "--no-progress", "--workers", "1"]
+    assert main(build) == 0
+    # The README names the command, as `vessel check`'s advice to rebuild a folder assumes.
+    assert shlex.join(["sim4endor", *build]) in (out / "README.md").read_text()
+    capsys.readouterr()
+    assert main(["vessel", "check", str(out)]) == 0
+    line = capsys.readouterr().out.strip()
+    assert "checked again: lumen open" in line and line.endswith("passed")
+    assert "{" not in line and "-0.0" not in line

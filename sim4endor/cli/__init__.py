@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import shlex
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
@@ -47,6 +48,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Runs the command line; returns the process exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    # As a user would type it again (a vessel folder's README names the command that built it).
+    args.command_line = shlex.join(["sim4endor", *(sys.argv[1:] if argv is None else argv)])
     # sim4endor's own progress lines at INFO; other libraries' (absl, PyOpenGL) only from
     # WARNING, unless -v asks for everything.
     logging.basicConfig(

@@ -81,8 +81,10 @@ def add_task_arguments(parser: argparse.ArgumentParser, *, evaluation_split: boo
                        help="domain vessel: a vessel name or a folder `sim4endor vessel build` "
                             "wrote")
     group.add_argument("--target", help="domain vessel: the target label, e.g. T1")
-    group.add_argument("--wire", metavar="PRESET",
-                       help="guidewire preset, e.g. workhorse (default: the domain's wire)")
+    group.add_argument("--wire", metavar="PRESET|JSON",
+                       help="guidewire preset, e.g. workhorse, or a JSON object of its fields, "
+                            "e.g. '{\"preset\": \"paper\", \"chain_bodies\": 6}' (default: "
+                            "the domain's wire)")
     group.add_argument("--tip", type=tip_shape, metavar="LENGTH_MM,ANGLE_DEG[,MM,DEG]|J",
                        help="shape the --wire preset's tip as a cardiologist does: the distal "
                             "1-5 mm bent through 30-90 deg (e.g. 3,75), optionally with a "
@@ -121,6 +123,11 @@ def task_arguments(args: argparse.Namespace) -> dict[str, Any]:
     return {name: value for name, value in given.items() if value is not None}
 
 
+#: The ``EnvConfig`` fields that only some domains take (:func:`env_config`).
+DOMAIN_FIELDS = ("vessel", "target", "pool_seed", "pool_size", "eval_pool_seed",
+                 "target_weights")
+
+
 def env_overrides(values: dict[str, Any]) -> list[str]:
     """``env.FIELD=VALUE`` overrides of ``values``; JSON-quoted, so a path stays text."""
     return [f"env.{name}={json.dumps(value)}" for name, value in values.items()]
@@ -130,9 +137,14 @@ def env_config(args: argparse.Namespace, base: EnvConfig | None = None) -> EnvCo
     """The environment a viewing command names: ``base`` (e.g. a run's) with the flags given.
 
     Reads ``args.domain``, ``args.task``, ``args.reward`` and the task arguments; a flag left
-    out keeps ``base``'s value (default: :class:`~sim4endor.rl.config.EnvConfig`'s).
+    out keeps ``base``'s value (default: :class:`~sim4endor.rl.config.EnvConfig`'s). Another
+    domain than ``base``'s keeps its wire and observations but none of its domain's own
+    arguments (a coronary run's tree pool means nothing to a vessel folder).
     """
     fields = task_arguments(args)
+    if base is not None and args.domain is not None and args.domain != base.domain:
+        cleared: dict[str, Any] = dict.fromkeys(DOMAIN_FIELDS)
+        base = dataclasses.replace(base, **cleared)
     if args.domain is not None:
         fields.update(domain=args.domain, task=args.task)
     if args.reward is not None:

@@ -42,7 +42,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "'expert' (reactive) or 'probing-expert' (simulates aims ahead "
                              "where it is stuck: is every target within the wire's reach?)")
     parser.add_argument("--trials", type=arg_types.positive_int,
-                        help="episodes (default: 10; with --suite, per case: 1)")
+                        help="episodes (default: 10 on the run's task or one --target; per "
+                             "case with --suite, per target with --vessel alone: 1)")
     parser.add_argument("--seed", type=arg_types.seed, help="evaluation seed (default: the run's)")
     parser.add_argument("--domain", help="evaluate on another domain (default: the run's)")
     parser.add_argument("--task", help="task of --domain")

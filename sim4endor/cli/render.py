@@ -243,14 +243,15 @@ def render_episode(args: argparse.Namespace) -> int:
 
     frames: list[Any] = []
     total, step = 0.0, 0
-    bar = tqdm(total=args.max_steps, unit="steps", desc=f"render {config.domain}/{config.task}",
+    max_steps = step_budget(env, args.max_steps)
+    bar = tqdm(total=max_steps, unit="steps", desc=f"render {config.domain}/{config.task}",
                disable=args.no_progress)
     while True:
         reward = 0.0 if timestep.reward is None else float(timestep.reward)
         total += reward
         overlay = TextOverlay(body=status_text(env, step, reward, total))
         frames.append(np.array(camera.render(overlays=[overlay])))  # render reuses its buffer
-        if timestep.last() or step >= args.max_steps:
+        if timestep.last() or step >= max_steps:
             break
         timestep = env.step(policy(state_vector(timestep.observation)))
         step += 1
@@ -264,6 +265,14 @@ def render_episode(args: argparse.Namespace) -> int:
     print(f"{out}: {episode_outcome(env, timestep, step)}, return {total:+.2f}")  # noqa: T201
     env.physics.free()  # release the GL context now, not in dm_control's atexit hook
     return 0
+
+
+def step_budget(env: NavigationEnvironment, requested: int | None) -> int:
+    """The control steps an episode of ``env`` may take: its task's time limit (800 on a
+    coronary tree or a coronary wire's vessel folder, 400 on the phantoms), or fewer if
+    ``requested``."""
+    limit = round(env.task.config.termination.time_limit / env.control_timestep())
+    return limit if requested is None else min(requested, limit)
 
 
 def episode_outcome(env: NavigationEnvironment, timestep: Any, steps: int) -> str:
@@ -319,8 +328,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="progress distance (default: manifold, or the run's)")
     arg_types.add_task_arguments(parser)
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    parser.add_argument("--max-steps", type=arg_types.positive_int, default=400,
-                        help="stop after this many steps")
+    parser.add_argument("--max-steps", type=arg_types.positive_int, default=None,
+                        help="stop after this many steps (default: the task's own time limit)")
     parser.add_argument("--width", type=arg_types.positive_int, default=640)
     parser.add_argument("--height", type=arg_types.positive_int, default=480)
     parser.add_argument("--fps", type=arg_types.positive_int, default=20,

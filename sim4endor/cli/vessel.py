@@ -7,6 +7,7 @@ group and sets ``func``; :func:`register` adds them all, so a new action is one 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -42,9 +43,14 @@ def _print(line: str) -> None:
     print(line)  # noqa: T201  (the CLI's result line)
 
 
+def _mm(metres: float) -> str:
+    """Metres as millimetres to 0.1 mm, never "-0.0"."""
+    return f"{round(1e3 * metres, 1) + 0.0:.1f}"
+
+
 def _summary(vessel: Any) -> str:
     checks = vessel.manifest.checks
-    inlet = ", ".join(f"{1e3 * v:.1f}" for v in vessel.manifest.inlet.position)
+    inlet = ", ".join(_mm(v) for v in vessel.manifest.inlet.position)
     choice = vessel.manifest.build.get("inlet_choice")
     return (
         f"{vessel.root}: {vessel.manifest.hull_count} hulls, lumen open "
@@ -100,6 +106,7 @@ def run_build(args: argparse.Namespace) -> int:
         progress=not args.no_progress,
         cache=not args.no_cache,
         allow_below_acceptance=args.allow_below_acceptance,
+        command=args.command_line,
     )
     _print(_summary(vessel))
     return 0
@@ -112,8 +119,19 @@ def run_check(args: argparse.Namespace) -> int:
 
     vessel = load(args.vessel)
     report = check_folder(vessel)
-    _print(strict_json.dumps(report) if args.json else _summary(vessel) + f"; now {report}")
+    _print(strict_json.dumps(report) if args.json else f"{_summary(vessel)}; checked again: "
+           + _check_line(report))
     return 0 if report["passed"] else 1
+
+
+def _check_line(report: Mapping[str, Any]) -> str:
+    """``check_folder``'s report in words."""
+    holes = report["wall_holes"]
+    return (f"lumen open {report['lumen_open']:.4f}, wall closed {report['wall_closed']:.4f}, "
+            f"{report['hull_count']} hulls, "
+            f"{'loads without warnings' if report['compiles'] else 'MuJoCo warns on loading'}, "
+            f"{f'{holes} hole(s) in the wall' if holes else 'no hole in the wall'}: "
+            f"{'passed' if report['passed'] else 'FAILED'}")
 
 
 def run_list(args: argparse.Namespace) -> int:

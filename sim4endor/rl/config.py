@@ -11,6 +11,7 @@ field can be overridden with a ``section.field=value`` string (see :func:`apply_
 from __future__ import annotations
 
 import dataclasses
+import json
 import types
 import typing
 from collections.abc import Iterable, Mapping
@@ -96,8 +97,9 @@ class EnvConfig:
         vessel: domain ``vessel``: a vessel name or the folder ``sim4endor vessel build``
             wrote (stored as an absolute path, so the run can be evaluated from anywhere).
         target: domain ``vessel``: the target label, e.g. ``T1``.
-        wire: a guidewire preset of :mod:`sim4endor.models.wires` (``None``: the domain's
-            default wire).
+        wire: a guidewire preset of :mod:`sim4endor.models.wires`, or a JSON object of its
+            fields with an optional ``preset`` (``'{"preset": "paper", "chain_bodies": 6}'``;
+            :func:`sim4endor.models.wires.resolve`); ``None``: the domain's default wire.
         tip: the shape a cardiologist bends into ``wire``'s tip (:func:`sim4endor.models.
             wires.parse_tip`): ``"LENGTH_MM,ANGLE_DEG"``, e.g. ``"3,75"``, or ``"J"``
             (``None``: the preset's own shape). Needs ``wire``.
@@ -139,29 +141,51 @@ class EnvConfig:
         if self.observations != "paper" and self.extra_observations:
             raise ConfigError("env.extra_observations extend the 'paper' set only; the "
                               f"{self.observations!r} set is used as it is.")
-        if self.tip is not None:
-            # Imported here: the wire catalogue loads MuJoCo, which configs and --help do not need.
-            from sim4endor.models.wires import WireCatalogueError, parse_tip
+        if self.tip is not None and self.wire is None:
+            raise ConfigError(f"env.tip={self.tip!r} shapes the tip of env.wire: name the "
+                              "wire preset too (e.g. workhorse).")
+        if self.wire is not None or self.fidelity is not None:
+            # Resolved now, so that a bad wire, tip or fidelity is refused before any tree is
+            # built; imported here: the wire catalogue loads MuJoCo, which configs and --help
+            # do not need.
+            from sim4endor.errors import Sim4EndoRError
+            from sim4endor.models import wires
 
-            if self.wire is None:
-                raise ConfigError(f"env.tip={self.tip!r} shapes the tip of env.wire: name the "
-                                  "wire preset too (e.g. workhorse).")
             try:
-                parse_tip(self.tip)
-            except WireCatalogueError as exc:
-                raise ConfigError(f"env.tip: {exc}") from None
-        if self.fidelity is not None:
-            from sim4endor.models.fidelity import FIDELITIES
-
-            if self.fidelity not in FIDELITIES:
-                raise ConfigError(f"env.fidelity must be one of {list(FIDELITIES)}, got "
-                                  f"{self.fidelity!r}.")
+                wires.resolve(self.wire_setting(), self.fidelity)
+            except Sim4EndoRError as exc:
+                raise ConfigError(f"env.wire / env.tip / env.fidelity: {exc}") from None
         if self.target_weights is not None and self.domain != "coronary":
             raise ConfigError(f"env.target_weights weigh the coronary domain's targets; "
                               f"domain {self.domain!r} draws none.")
         if self.eval_pool_seed is not None and self.pool_size is None:
             raise ConfigError("env.eval_pool_seed needs env.pool_size (the training trees' "
                               "count), so the two splits can be told apart.")
+
+    def wire_setting(self) -> str | dict[str, Any] | None:
+        """``wire`` and ``tip`` as :func:`sim4endor.models.wires.resolve` takes them: a preset
+        name, or a mapping of fields (a JSON ``wire`` parsed; ``tip`` as plain data, as an
+        exported policy's policy.json records it)."""
+        wire: str | dict[str, Any] | None = self.wire
+        if isinstance(wire, str) and wire.lstrip().startswith("{"):
+            try:
+                wire = json.loads(wire)
+            except json.JSONDecodeError as exc:
+                raise ConfigError(f"env.wire is not a JSON object of wire fields: {exc}") from None
+            if not isinstance(wire, dict):
+                raise ConfigError(f"env.wire must be a preset name or a JSON object, got "
+                                  f"{self.wire!r}.")
+        if self.tip is None:
+            return wire
+        from sim4endor.models.wires import WireCatalogueError, parse_tip
+
+        try:
+            tip = parse_tip(self.tip)
+        except WireCatalogueError as exc:
+            raise ConfigError(f"env.tip: {exc}") from None
+        shape = tip if isinstance(tip, str) else tip.as_mapping()
+        return {**wire, "tip": shape} if isinstance(wire, dict) else {"preset": wire,
+                                                                      "tip": shape}
 
     def observation_names(self) -> tuple[str, ...]:
         """The task's observation entries, in the order the observation vector holds them."""
@@ -181,16 +205,7 @@ class EnvConfig:
                                   "observations": observations}
         pool_seed = self.eval_pool_seed if evaluation and self.eval_pool_seed is not None \
             else self.pool_seed
-        wire: str | dict[str, Any] | None = self.wire
-        if self.tip is not None:
-            from sim4endor.models.wires import parse_tip
-
-            # Plain data ({"length": m, "angle": rad, ...} or "J"), as the wire catalogue
-            # takes it: these arguments are also written into an exported policy's policy.json.
-            tip = parse_tip(self.tip)
-            wire = {"preset": self.wire,
-                    "tip": tip if isinstance(tip, str) else tip.as_mapping()}
-        given = {"vessel": self.vessel, "target": self.target, "wire": wire,
+        given = {"vessel": self.vessel, "target": self.target, "wire": self.wire_setting(),
                  "fidelity": self.fidelity, "pool_seed": pool_seed, "pool_size": self.pool_size,
                  "target_weights": None if evaluation else self.target_weights}
         kwargs.update({key: value for key, value in given.items() if value is not None})

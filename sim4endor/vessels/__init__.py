@@ -19,7 +19,7 @@ import numpy as np
 from sim4endor import assets
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph
-from sim4endor.vessels.manifest import MANIFEST_FILE, Manifest
+from sim4endor.vessels.manifest import MANIFEST_FILE, REBUILD, Manifest
 
 logger = logging.getLogger(__name__)
 
@@ -138,7 +138,7 @@ def load(name_or_path: str | Path) -> Vessel:
         raise VesselFolderError(
             f"{root}: {CENTERLINE_FILE} has no node labelled {missing} (it labels "
             f"{sorted(centerline.labels)}), which {MANIFEST_FILE} names as inlet and targets; "
-            "rebuild the folder with the command in its README."
+            f"{REBUILD}"
         )
     failed = manifest.below_acceptance
     if failed:

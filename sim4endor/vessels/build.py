@@ -358,10 +358,12 @@ def _store_in_cache(out_dir: Path, cached: Path) -> None:
                        "complete", exc, out_dir)
 
 
-def _readme(name: str, source: str, units: str, text: str, manifest: Manifest) -> str:
+def _readme(name: str, source: str, units: str, text: str, manifest: Manifest,
+            command: str = "") -> str:
     checks = manifest.checks
+    rebuild = f"Rebuild it with:\n\n```bash\n{command}\n```\n\n" if command else ""
     return (
-        f"# {name}\n\n{text.strip()}\n\n"
+        f"# {name}\n\n{text.strip()}\n\n{rebuild}"
         f"- Source: {source or 'not given'}\n"
         f"- Input units: {units}; the model is in metres (`mesh_to_model` in manifest.json).\n"
         f"- Built by `sim4endor` {_package_version()} with `build_vessel`: {manifest.hull_count} "
@@ -404,6 +406,7 @@ def build_vessel(
     progress: bool = True,
     cache: bool = True,
     allow_below_acceptance: bool = False,
+    command: str = "",
 ) -> Vessel:
     """Builds a vessel folder from a lumen (blood-pool) surface mesh.
 
@@ -425,6 +428,9 @@ def build_vessel(
         cache: Reuse and fill the build cache.
         allow_below_acceptance: Write the folder even when its checks are below acceptance
             (``Manifest.below_acceptance``); every load of it then warns.
+        command: The command line that builds it, written into its README so that ``vessel
+            check``'s advice to rebuild it can be followed (not part of the build's identity:
+            the same inputs built from another command share the cache).
 
     Returns:
         The loaded vessel.
@@ -458,6 +464,8 @@ def build_vessel(
             )
         with atomic_directory(out_dir) as staging:
             shutil.copytree(cached, staging, dirs_exist_ok=True)
+            (staging / "README.md").write_text(
+                _readme(name, source, units, readme_text, Manifest.load(cached), command))
         return load(out_dir)
     show = progress and sys.stderr.isatty()
     start = time.perf_counter()
@@ -602,7 +610,8 @@ def build_vessel(
         )
         graph.save(staging / CENTERLINE_FILE)
         manifest.save(staging)
-        (staging / "README.md").write_text(_readme(name, source, units, readme_text, manifest))
+        (staging / "README.md").write_text(
+            _readme(name, source, units, readme_text, manifest, command))
         if license_text is not None:
             (staging / "LICENSE").write_text(license_text)
     if cache:

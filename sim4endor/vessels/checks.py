@@ -27,7 +27,7 @@ from scipy.spatial import cKDTree
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.axis import AxisSamples, sample_axis
 from sim4endor.vessels.centerline import CenterlineGraph
-from sim4endor.vessels.manifest import below_acceptance
+from sim4endor.vessels.manifest import REBUILD, below_acceptance
 from sim4endor.vessels.meshio import boundary_loops, loop_perimeter
 from sim4endor.vessels.walls import Hull, convex_hull, wall_thickness
 
@@ -196,10 +196,9 @@ def _mesh(path: Path) -> trimesh.Trimesh:
         mesh = trimesh.load(path, force="mesh")
     except Exception as exc:  # trimesh raises many unrelated types for unreadable files
         raise VesselCheckError(f"{path} is not a readable mesh ({type(exc).__name__}); "
-                               "rebuild the folder with the command in its README.") from None
+                               f"{REBUILD}") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise VesselCheckError(f"{path} holds no triangles; rebuild the folder with the "
-                               "command in its README.")
+        raise VesselCheckError(f"{path} holds no triangles; {REBUILD}")
     return mesh
 
 
@@ -222,8 +221,7 @@ def check_folder(vessel: Vessel, params: CheckParams | None = None) -> dict[str,
     except ValueError as exc:
         reason = str(exc).strip().splitlines()[0].removeprefix("Error: ")
         raise VesselCheckError(
-            f"{vessel.root}: MuJoCo cannot load the folder ({reason}); rebuild it with the "
-            "command in its README."
+            f"{vessel.root}: MuJoCo cannot load the folder ({reason}); {REBUILD}"
         ) from None
     hulls = [
         h

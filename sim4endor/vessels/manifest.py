@@ -16,6 +16,8 @@ from sim4endor.errors import Sim4EndoRError
 
 MANIFEST_FILE = "manifest.json"
 SCHEMA_VERSION = 1
+#: What a message about a damaged or inconsistent vessel folder tells its user to do.
+REBUILD = "rebuild the folder (its README names the command that built it)."
 
 
 class ManifestError(Sim4EndoRError, ValueError):
