@@ -8,6 +8,7 @@ into place, so outputs written atomically look like every other output.
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
 import inspect
 import os
@@ -39,11 +40,12 @@ def exclusive_output(target: Path) -> Iterator[None]:
     process ends, however it ends), removed again when the first writer is done.
     """
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
     path = target.parent / f".{target.name}.lock"
     lock = filelock.FileLock(path, timeout=0)
     try:
-        lock.acquire()
+        with _naming(target):
+            target.parent.mkdir(parents=True, exist_ok=True)
+            lock.acquire()
     except filelock.Timeout:
         raise OutputBusyError(
             f"{target} is being written by another sim4endor process; wait for it to finish "
@@ -90,7 +92,8 @@ def atomic_directory(target: Path, *, overwrite: bool = True) -> Iterator[Path]:
         raise FileExistsError(f"{target} already exists; pass overwrite=True to replace it.")
     if target.exists() and not target.is_dir():
         raise FileExistsError(f"{target} exists and is not a folder; it is not replaced.")
-    staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    with _naming(target):
+        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     try:
         yield staging
     except BaseException:
@@ -113,8 +116,9 @@ def atomic_write_text(path: Path, text: str) -> None:
 def atomic_write_bytes(path: Path, data: bytes) -> None:
     """Writes ``data`` to ``path`` through a temporary file and a rename."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    with _naming(path):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
@@ -124,6 +128,20 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+@contextlib.contextmanager
+def _naming(target: Path) -> Iterator[None]:
+    """Turns a refusal to write where ``target`` goes into one that names ``target``, not
+    the hidden staging or lock file the refusal came from."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
+            raise
+        raise PermissionError(
+            exc.errno, f"cannot write {target}: {target.parent} is not writable ({exc.strerror})"
+        ) from None
 
 
 def _umask() -> int:

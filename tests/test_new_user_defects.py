@@ -16,8 +16,8 @@ from guidewire_helpers import write_tube_vessel
 from sim4endor import assets, suite, vessels
 from sim4endor._atomic import exclusive_output
 from sim4endor.cli import build_parser, main
-from sim4endor.rl.config import EnvConfig
 from sim4endor.envs.gym import NavigationEnv
+from sim4endor.rl.config import EnvConfig
 from sim4endor.vessels import VesselFolderError
 from sim4endor.vessels.centerline import CenterlineError
 from sim4endor.vessels.manifest import ManifestError
@@ -163,3 +163,54 @@ def test_vessel_check_speaks_in_words_and_a_built_folder_names_its_command(
     line = capsys.readouterr().out.strip()
     assert "checked again: lumen open" in line and line.endswith("passed")
     assert "{" not in line and "-0.0" not in line
+
+
+def test_an_unwritable_out_is_named_not_its_hidden_staging_file(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # Root writes into a read-only folder, so the refusal is the operating system's, raised
+    # where the staging file is made; it named the hidden temp path (.config.yaml.x1y2).
+    import tempfile
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise PermissionError(13, "Permission denied", str(tmp_path / "run" / ".config.yaml.x1"))
+
+    monkeypatch.setattr(tempfile, "mkstemp", refuse)
+    out = tmp_path / "run"
+    status, err = run_cli(["train", "sac", "--domain", "simplified_phantom", "--task",
+                           "task_a", "--frames", "10", "--out", out], capsys)
+    assert_refused(status, err, str(out / "config.yaml"), "not writable")
+    assert ".x1" not in err
+
+
+def test_a_folder_passed_as_the_mesh_is_called_a_folder(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / "segmentation"
+    folder.mkdir()
+    (folder / "lumen.stl").write_text("solid x\nendsolid x\n")
+    status, err = run_cli(["vessel", "build", folder, "--name", "t", "--out", tmp_path / "o",
+                           "--units", "mm"], capsys)
+    assert_refused(status, err, str(folder), "is a folder", "lumen.stl")
+
+
+def test_export_refuses_a_folder_of_other_files(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # train and vessel build refused a non-empty unrelated --out; export wrote into it.
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "thesis.tex").write_text("years of work\n")
+    before = snapshot(out)
+    status, err = run_cli(["export", "generalist", "--out", out], capsys)
+    assert_refused(status, err, str(out), "thesis.tex")
+    assert snapshot(out) == before
+
+
+def test_a_negative_list_is_a_value_not_an_option(capsys: pytest.CaptureFixture[str]) -> None:
+    # `--tip -3,75` read as an unknown flag ("--tip: expected one argument"), and so did an
+    # inlet below the origin.
+    args = build_parser().parse_args(["vessel", "build", "m.stl", "--name", "v", "--inlet",
+                                      "-10,0,2.5", "--target", "T1=-1e-3,-2,3"])
+    assert list(args.inlet) == [-10.0, 0.0, 2.5]
+    status, err = run_cli(["train", "sac", "--wire", "workhorse", "--tip", "-3,75", "--out",
+                           "x"], capsys)
+    assert_refused(status, err, "--tip", "'-3,75'", "1-5 mm")

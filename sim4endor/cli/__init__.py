@@ -10,10 +10,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import re
 import shlex
 import sys
 from collections.abc import Sequence
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from sim4endor import _gl
 from sim4endor.errors import Sim4EndoRError, caused_by_interrupt
@@ -24,8 +25,19 @@ _SUBCOMMAND_MODULES: tuple[str, ...] = (
 )
 
 
+#: A number, or a comma-separated list of them, as the options' values are written.
+_NUMBER = r"-?\d*\.?\d+(?:[eE][-+]?\d+)?"
+
+
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line naming the argument, not the usage text."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        # argparse takes "-3" for a value but "-3,75" or "-10,0,2" (a tip, a point below the
+        # origin) for an unknown option, and then says the option before it expected one
+        # argument; no option of ours looks like a number, so such lists are values too.
+        self._negative_number_matcher = re.compile(rf"^-{_NUMBER[2:]}(?:,{_NUMBER})*$")
 
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")

@@ -102,8 +102,18 @@ def run(args: argparse.Namespace) -> int:
     else:
         width = max(len(key) for key in metrics)
         for key, value in metrics.items():
-            print(f"{key:<{width}}  {'n/a' if value is None else value}")  # noqa: T201
+            print(f"{key:<{width}}  {_shown(value)}")  # noqa: T201
     return 0
+
+
+def _shown(value: object) -> str:
+    """A metric as the table prints it: floats to 4 significant digits (a sum of episode
+    times read 3.7000000000000006), None as n/a; the JSON output keeps every digit."""
+    if value is None:
+        return "n/a"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
 
 
 def _run_suite(args: argparse.Namespace) -> int:

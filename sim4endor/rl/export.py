@@ -94,9 +94,11 @@ def export_policy(
         make_env: ``seed -> env`` factory; defaults to the run's task (read for the specs).
 
     Raises:
-        ExportError: when ``source`` is neither.
+        ExportError: when ``source`` is neither, or ``out_dir`` holds other files than an
+            export's (an export never overwrites what it did not write).
     """
     source = Path(source)
+    _check_out(Path(out_dir))
     folder = source.parent if source.name == POLICY_FILE else source
     if (folder / POLICY_FILE).is_file() and (folder / CONTRACT_FILE).is_file():
         return _reexport(folder, Path(out_dir), onnx=onnx)
@@ -107,6 +109,23 @@ def export_policy(
         )
     config, agent = load_agent(source, make_env)
     return export_agent(config, agent, out_dir, onnx=onnx)
+
+
+def _check_out(out_dir: Path) -> None:
+    """Refuses an ``out_dir`` that is a file or holds files an export does not write."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ExportError(f"--out {out_dir} exists and is not a folder; choose another.")
+    exported = {POLICY_FILE, CONTRACT_FILE, ONNX_FILE}
+    foreign = sorted(p.name for p in out_dir.iterdir() if p.name not in exported) \
+        if out_dir.is_dir() else []
+    if foreign:
+        shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5
+                                          else "")
+        raise ExportError(
+            f"--out {out_dir} holds files an export does not write ({shown}); choose a new or "
+            f"empty folder (an export writes {POLICY_FILE}, {CONTRACT_FILE} and, with --onnx, "
+            f"{ONNX_FILE})."
+        )
 
 
 def _reexport(folder: Path, out_dir: Path, *, onnx: bool) -> list[Path]:

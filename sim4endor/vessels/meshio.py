@@ -100,6 +100,11 @@ class PreparedLumen:
 def read_mesh(path: Path) -> trimesh.Trimesh:
     """Reads a surface mesh file (STL, OBJ, PLY or OFF) without changing it."""
     path = Path(path)
+    if path.is_dir():
+        meshes = sorted(p.name for p in path.iterdir() if p.suffix.lower() in SUPPORTED_SUFFIXES)
+        found = f" (it holds {', '.join(meshes[:5])})" if meshes else ""
+        raise MeshInputError(f"{path} is a folder, not a mesh file{found}. Pass the lumen "
+                             "surface mesh (STL/OBJ/PLY) itself.")
     if not path.is_file():
         raise MeshInputError(f"{path}: no such file. Pass the lumen surface mesh (STL/OBJ/PLY).")
     if path.suffix.lower() not in SUPPORTED_SUFFIXES:
