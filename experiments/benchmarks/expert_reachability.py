@@ -74,6 +74,7 @@ from scipy.stats import binomtest
 from sim4endor import _json as strict_json
 from sim4endor import suite, vessels
 from sim4endor.errors import Sim4EndoRError
+from sim4endor.models import fidelity as fidelities
 from sim4endor.models import wires
 from sim4endor.tasks.expert import CenterlineExpert, ProbingExpert, run_expert
 
@@ -88,12 +89,14 @@ START_STRIDE = 1_000_000
 
 
 def reachability(domain: str, task: str, episodes: int, expert: CenterlineExpert,
-                 wire: str | dict[str, object] | None = None) -> dict[str, object]:
+                 wire: str | dict[str, object] | None = None, fidelity: str | None = None
+                 ) -> dict[str, object]:
     """Runs ``episodes`` seeded expert episodes (seeds 0..episodes-1) and counts outcomes;
-    ``wire`` is the task's wire setting (``None``: the phantom's own wire, ``paper``)."""
+    ``wire`` is the task's wire setting (``None``: the phantom's own wire, ``paper``) and
+    ``fidelity`` its numerics (``None``: the domain's default)."""
     outcomes: collections.Counter[str] = collections.Counter()
     times = []
-    extra = {} if wire is None else {"wire": wire}
+    extra = _wire_kwargs(wire, fidelity)
     for seed in range(episodes):
         env = suite.load(domain, task, {"random": seed, **extra})
         info = run_expert(env, expert)
@@ -104,7 +107,8 @@ def reachability(domain: str, task: str, episodes: int, expert: CenterlineExpert
             outcomes[str(info["failure"] or "timeout")] += 1
         env.close()
     return {
-        "domain": domain, "task": task, "wire": wire, "episodes": episodes,
+        "domain": domain, "task": task, "wire": wire, "fidelity": fidelity,
+        "episodes": episodes,
         "successes": outcomes.pop("success", 0), "other_outcomes": dict(outcomes),
         "mean_time_s": sum(times) / len(times) if times else None,
     }
@@ -144,9 +148,17 @@ def case_episode(job: tuple[Case, str, int]) -> dict[str, object]:
     return row
 
 
-def coronary_cases(seed: int, wire: str | dict[str, object]) -> list[Case]:
+def _wire_kwargs(wire: str | dict[str, object] | None, fidelity: str | None
+                 ) -> dict[str, object]:
+    """The task arguments of a wire setting and a fidelity, each where given."""
+    return {key: value for key, value in (("wire", wire), ("fidelity", fidelity))
+            if value is not None}
+
+
+def coronary_cases(seed: int, wire: str | dict[str, object], fidelity: str | None = None
+                   ) -> list[Case]:
     """One case per distal target of coronary tree ``seed`` (builds and caches the tree)."""
-    tree = {"pool_seed": seed, "pool_size": 1, "wire": wire}
+    tree = {"pool_seed": seed, "pool_size": 1, **_wire_kwargs(wire, fidelity)}
     env = suite.load("coronary", "navigate", tree)
     targets = sorted(env.task.anatomy.vessel.targets)
     env.close()
@@ -154,12 +166,14 @@ def coronary_cases(seed: int, wire: str | dict[str, object]) -> list[Case]:
             for target in targets]
 
 
-def vessel_cases(folder: Path, wire: str | dict[str, object]) -> list[Case]:
+def vessel_cases(folder: Path, wire: str | dict[str, object], fidelity: str | None = None
+                 ) -> list[Case]:
     """One case per target of a vessel folder (``sim4endor vessel build`` output), through the
     ``vessel`` domain as a user loads it; start 0 is the env seeded with 0."""
     targets = sorted(vessels.load(folder).targets)
-    return [Case("vessel", {"vessel": str(folder), "target": target, "wire": wire}, 0,
-                 {"vessel": str(folder)}) for target in targets]
+    return [Case("vessel", {"vessel": str(folder), "target": target,
+                            **_wire_kwargs(wire, fidelity)}, 0, {"vessel": str(folder)})
+            for target in targets]
 
 
 def starts_summary(rows: list[dict[str, object]]) -> dict[str, object]:
@@ -221,6 +235,8 @@ def main() -> None:
                         help="shape the wire's tip (default: the preset's): "
                              "LENGTH_MM ANGLE_DEG, and a secondary curve's DISTANCE_MM "
                              "ANGLE_DEG if it has one")
+    parser.add_argument("--fidelity", choices=fidelities.names(), default=None,
+                        help="the wire's numerical settings (default: each domain's)")
     parser.add_argument("--expert", choices=tuple(EXPERTS), default="centerline")
     parser.add_argument("--workers", type=int, default=1,
                         help="episodes run at once, one process each (coronary, vessel)")
@@ -246,17 +262,19 @@ def main() -> None:
         with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
             if args.domain == "coronary":
                 seeds = range(args.first_seed, args.first_seed + args.trees)
-                trees = pool.starmap(coronary_cases, [(seed, wire) for seed in seeds])
-                summary = {"domain": "coronary", "wire": wire, "trees": args.trees,
-                           "first_seed": args.first_seed}
+                trees = pool.starmap(coronary_cases,
+                                     [(seed, wire, args.fidelity) for seed in seeds])
+                summary = {"domain": "coronary", "wire": wire, "fidelity": args.fidelity,
+                           "trees": args.trees, "first_seed": args.first_seed}
                 name = (f"coronary ({wire} wire, {args.trees} trees from seed "
                         f"{args.first_seed})")
             else:
                 try:
-                    trees = [vessel_cases(folder, wire) for folder in args.vessels]
+                    trees = [vessel_cases(folder, wire, args.fidelity)
+                             for folder in args.vessels]
                 except Sim4EndoRError as error:  # names the folder and what is wrong
                     parser.error(f"--vessels: {error}")
-                summary = {"domain": "vessel", "wire": wire,
+                summary = {"domain": "vessel", "wire": wire, "fidelity": args.fidelity,
                            "vessels": [str(folder) for folder in args.vessels]}
                 name = f"vessel folders ({wire} wire, {len(args.vessels)} folders)"
             cases_reachability(pool, [case for tree in trees for case in tree], args.expert,
@@ -265,7 +283,7 @@ def main() -> None:
     for domain, task in TASKS:
         # The phantoms' own wire is left to their task unless the command line sets one.
         row = reachability(domain, task, args.episodes, EXPERTS[args.expert](),
-                           wire if args.wire or args.tip else None)
+                           wire if args.wire or args.tip else None, args.fidelity)
         if args.json:
             print(strict_json.dumps(row), flush=True)
             continue
