@@ -29,12 +29,14 @@ MEAN_TARGET_MM = 0.1
 
 
 def label(result: dict[str, Any]) -> str:
-    """A point's name: its mass scale and step, or the wire fields it changed."""
+    """A point's name: its mass scale and step, its fidelity, or the wire fields it changed."""
     if "mass_scale" in result:
         return f"x{result['mass_scale']:.0e}, {result['timestep_s'] * 1e3:g} ms".replace("e+0", "e")
     changed = result.get("wire") or {}
+    if not changed and "fidelity" in result:  # runs since the fidelities (2026-12-06)
+        return f"{result['fidelity'] or 'converged'} fidelity"
     if not changed:
-        return "shipped"
+        return "shipped until 2026-12-06 (x1e4)"
     short = {"integrator": "", "mass_scale": "x", "damping_time": "damping ",
              "armature_time": "armature ", "contact_margin": "margin ", "max_timestep": "dt "}
     return ", ".join(f"{short.get(k, k + ' ')}{v:g}" if isinstance(v, float | int)
