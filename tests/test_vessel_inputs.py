@@ -16,6 +16,7 @@ from sim4endor.cli import main
 from sim4endor.vessels import build as build_module
 from sim4endor.vessels.checks import CheckParams
 from sim4endor.vessels.meshio import MeshInputError, prepare_lumen, read_mesh
+from sim4endor.vessels.remesh import RemeshParams
 from sim4endor.vessels.walls import WallParams, WallParamsError
 
 
@@ -215,3 +216,68 @@ def test_a_build_below_acceptance_fails_unless_allowed_and_then_warns(
     with caplog.at_level(logging.WARNING):
         vessels.load(out)
     assert any("checks below acceptance" in r.getMessage() for r in caplog.records)
+
+
+def _marching_cubes_y(voxel: float = 0.2) -> trimesh.Trimesh:
+    """A closed Y lumen (mm) as a segmentation's marching cubes make it: a 1.6 mm trunk
+    forking into 1.1 and 0.85 mm branches, sampled at ``voxel`` mm (the branches' sideways
+    offsets are those of the generated tree whose lumen the old repair broke)."""
+    from skimage import measure
+
+    def capsule(points: np.ndarray, a: np.ndarray, b: np.ndarray, r: float) -> np.ndarray:
+        ab = b - a
+        t = np.clip(((points - a) @ ab) / (ab @ ab), 0.0, 1.0)
+        return np.linalg.norm(points - (a + t[..., None] * ab), axis=-1) - r
+
+    fork = np.array([0.0, 0.0, 20.0])
+    low, high = np.array([-10.0, -6.0, -2.5]), np.array([10.0, 6.0, 36.0])
+    grid = np.stack(np.meshgrid(*(np.arange(low[i], high[i], voxel) for i in range(3)),
+                                indexing="ij"), -1)
+    sdf = np.minimum.reduce([
+        capsule(grid, np.zeros(3), fork, 1.6),
+        capsule(grid, fork, fork + np.array([8.0, -2.486104997138254, 12.0]), 1.1),
+        capsule(grid, fork, fork + np.array([-7.0, -1.5791369604234018, 13.0]), 0.85),
+    ])
+    vertices, faces, _, _ = measure.marching_cubes(sdf, 0.0, spacing=(voxel,) * 3)
+    return trimesh.Trimesh(vertices + low, faces[:, ::-1], process=False)
+
+
+def test_the_same_lumen_is_repaired_the_same_in_mm_m_and_um() -> None:
+    # A closed marching-cubes lumen over the face budget: in millimetres and micrometres the
+    # repair merged on trimesh's fixed 1e-8 of the unit, left marching cubes' nanometre-near
+    # vertices apart, and the decimation then broke the lumen ("non-manifold boundary"); in
+    # metres it built. Every tolerance is now relative to the lumen.
+    lumen = _marching_cubes_y()
+    resolution = RemeshParams(max_faces=20_000)  # the decimation of a 184,738-face lumen
+    prepared = {}
+    for units, scale in (("mm", 1.0), ("m", 1e-3), ("um", 1e3)):
+        mesh = lumen.copy()
+        mesh.apply_scale(scale)
+        prepared[units] = prepare_lumen(mesh, units=units, resolution=resolution)
+    reference = prepared["m"]
+    assert reference.report.decimated_from > 20_000
+    for units in ("mm", "um"):
+        assert np.array_equal(prepared[units].mesh.faces, reference.mesh.faces), units
+        np.testing.assert_allclose(prepared[units].mesh.vertices, reference.mesh.vertices,
+                                   rtol=0, atol=1e-12)
+        assert prepared[units].report == reference.report
+    assert np.allclose(lumen.vertices, _marching_cubes_y().vertices)  # the input untouched
+
+
+@pytest.mark.slow
+def test_the_same_lumen_builds_the_same_in_mm_m_and_um(tmp_path: Path) -> None:
+    lumen = _marching_cubes_y()
+    manifests = {}
+    for units, scale in (("mm", 1.0), ("m", 1e-3), ("um", 1e3)):
+        mesh = lumen.copy()
+        mesh.apply_scale(scale)
+        vessel = build_module.build_vessel(
+            mesh, name="y", out_dir=tmp_path / units, units=units, cache=False,
+            progress=False, params=build_module.BuildParams(
+                wall=WallParams(workers=1), resolution=RemeshParams(max_faces=20_000)))
+        manifests[units] = vessel.manifest
+    for units in ("mm", "um"):
+        assert manifests[units].hull_count == manifests["m"].hull_count
+        for key in ("lumen_open", "wall_closed", "hull_count"):
+            assert manifests[units].checks[key] == manifests["m"].checks[key], (units, key)
+        assert manifests[units].targets.keys() == manifests["m"].targets.keys()

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -124,6 +125,31 @@ def read_mesh(path: Path) -> trimesh.Trimesh:
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise MeshInputError(f"{path} holds no triangles; export the lumen surface mesh again.")
     return loaded
+
+
+#: Vertices closer than this fraction of the mesh's median edge are one vertex
+#: (:func:`merge_close_vertices`).
+MERGE_FRACTION = 1e-4
+
+
+def merge_close_vertices(mesh: trimesh.Trimesh) -> None:
+    """Snaps (in place) the vertices of ``mesh`` to a grid of at most :data:`MERGE_FRACTION`
+    of its median edge, a power of ten, and merges those that meet.
+
+    trimesh's own merge rounds coordinates to a fixed 1e-8 in the mesh's units, so one lumen
+    merged differently in metres, millimetres and micrometres: marching-cubes vertices a few
+    nanometres apart were merged in metres only, and in millimetres the decimation then broke
+    the lumen ("non-manifold boundary"). On a grid set by the mesh's own edges, the same
+    points merge in any unit; snapped to it, a lumen given in millimetres or in micrometres
+    has the same coordinates once in metres, so every later step treats them alike.
+    """
+    edges = mesh.edges_unique_length
+    edges = edges[edges > 0]
+    if not edges.size:
+        return
+    digits = int(-math.floor(math.log10(MERGE_FRACTION * float(np.median(edges)))))
+    mesh.vertices = np.round(mesh.vertices, digits)
+    mesh.merge_vertices(merge_tex=True, merge_norm=True, digits_vertex=digits)
 
 
 def degenerate_faces(mesh: trimesh.Trimesh) -> NDArray[np.bool_]:
@@ -278,10 +304,9 @@ def _faces_inward(mesh: trimesh.Trimesh, samples: int = 256, seed: int = 0) -> b
     return away > across
 
 
-def _outward_in_metres(mesh: trimesh.Trimesh, scale: float) -> trimesh.Trimesh:
-    """``mesh`` scaled to metres, its winding made consistent and outward."""
+def _outward(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """``mesh`` with its winding made consistent and outward."""
     mesh = mesh.copy()
-    mesh.apply_scale(scale)
     trimesh.repair.fix_winding(mesh)
     if _faces_inward(mesh):
         # A new mesh, not Trimesh.invert(): in trimesh 5.2 invert() leaves the cached face
@@ -315,7 +340,9 @@ def prepare_lumen(
     """
     if units not in UNIT_SCALE:
         raise MeshInputError(f"units must be one of {list(UNIT_SCALE)}, got {units!r}.")
-    work = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False)
+    # A copy: the caller's mesh stays in its units.
+    work = trimesh.Trimesh(vertices=np.array(mesh.vertices, dtype=np.float64),
+                           faces=np.array(mesh.faces), process=False)
     if len(work.faces) == 0:
         raise MeshInputError(f"{source} holds no triangles.")
     if not np.all(np.isfinite(work.vertices)):
@@ -327,8 +354,12 @@ def prepare_lumen(
             f"across, absurd for a vessel (expected {PLAUSIBLE_EXTENT[0] * 1e3:g} mm to "
             f"{PLAUSIBLE_EXTENT[1]:g} m). {_units_hint(extent, PLAUSIBLE_EXTENT)}"
         )
+    # In metres from here on, and every tolerance relative to the lumen: the same mesh in mm,
+    # m or um is repaired the same.
+    scale = UNIT_SCALE[units]
+    work.apply_scale(scale)
     n_vertices = len(work.vertices)
-    work.merge_vertices(merge_tex=True, merge_norm=True)
+    merge_close_vertices(work)
     merged = n_vertices - len(work.vertices)
     n_faces = len(work.faces)
     work.update_faces(~degenerate_faces(work))
@@ -352,8 +383,7 @@ def prepare_lumen(
         dropped = tuple(sizes[1:])
         logger.info("%s: kept the largest component, dropped parts of %s faces", source, dropped)
 
-    scale = UNIT_SCALE[units]
-    work = _outward_in_metres(work, scale)
+    work = _outward(work)
     resolution = resolution or RemeshParams()
     decimated = len(work.faces) > resolution.max_faces
     # On a decimated copy for a large lumen: the ray casts took 19 s on 1.1 M faces.
