@@ -214,3 +214,27 @@ def test_a_negative_list_is_a_value_not_an_option(capsys: pytest.CaptureFixture[
     status, err = run_cli(["train", "sac", "--wire", "workhorse", "--tip", "-3,75", "--out",
                            "x"], capsys)
     assert_refused(status, err, "--tip", "'-3,75'", "1-5 mm")
+
+
+def test_trainings_final_evaluation_shows_its_progress(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # `train` printed nothing for ~3 min during its final evaluation on a coronary task.
+    from rl_testing import pendulum_env, tiny_config
+
+    from sim4endor.rl.trainer import train
+
+    config = tiny_config("sac")
+    train(config, tmp_path / "run", make_env=pendulum_env, progress=True)
+    err = capsys.readouterr().err
+    assert "evaluate: 100%" in err and f"{config.eval.trials}/{config.eval.trials}" in err
+
+
+@pytest.mark.parametrize("baseline", ["insert", "random"])
+def test_the_open_loop_baselines_run_on_a_vessel_folder_like_the_expert(
+        tube: Path, baseline: str, capsys: pytest.CaptureFixture[str]) -> None:
+    # They existed only inside --suite generalisation.
+    status = main(["evaluate", baseline, "--vessel", str(tube), "--json", "--no-progress"])
+    metrics = json.loads(capsys.readouterr().out)
+    assert status == 0 and metrics["trials"] == 1 and set(metrics["targets"]) == {"A"}
+    if baseline == "insert":  # the tube is straight: pushing reaches its end
+        assert metrics["success_rate"] == 1.0

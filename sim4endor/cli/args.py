@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 from pathlib import Path
@@ -18,6 +17,10 @@ from sim4endor.rl.config import MAX_SEED, EnvConfig
 #: reachability check of an anatomy.
 EXPERT, PROBING_EXPERT = "expert", "probing-expert"
 EXPERT_POLICIES = (EXPERT, PROBING_EXPERT)
+#: The open-loop reference policies, by the names ``render``, ``view`` and ``evaluate`` take:
+#: the constant push ``[1, 0]`` and uniform random actions (seeded by ``--seed``).
+INSERT, RANDOM = "insert", "random"
+REFERENCE_POLICIES = (INSERT, RANDOM, *EXPERT_POLICIES)
 
 
 def positive_int(text: str) -> int:
@@ -123,11 +126,6 @@ def task_arguments(args: argparse.Namespace) -> dict[str, Any]:
     return {name: value for name, value in given.items() if value is not None}
 
 
-#: The ``EnvConfig`` fields that only some domains take (:func:`env_config`).
-DOMAIN_FIELDS = ("vessel", "target", "pool_seed", "pool_size", "eval_pool_seed",
-                 "target_weights")
-
-
 def env_overrides(values: dict[str, Any]) -> list[str]:
     """``env.FIELD=VALUE`` overrides of ``values``; JSON-quoted, so a path stays text."""
     return [f"env.{name}={json.dumps(value)}" for name, value in values.items()]
@@ -137,16 +135,15 @@ def env_config(args: argparse.Namespace, base: EnvConfig | None = None) -> EnvCo
     """The environment a viewing command names: ``base`` (e.g. a run's) with the flags given.
 
     Reads ``args.domain``, ``args.task``, ``args.reward`` and the task arguments; a flag left
-    out keeps ``base``'s value (default: :class:`~sim4endor.rl.config.EnvConfig`'s). Another
-    domain than ``base``'s keeps its wire and observations but none of its domain's own
-    arguments (a coronary run's tree pool means nothing to a vessel folder).
+    out keeps ``base``'s value (default: :class:`~sim4endor.rl.config.EnvConfig`'s), as a run
+    is evaluated elsewhere (:func:`sim4endor.rl.runs.evaluation_env`: another domain keeps
+    the wire and observations but none of the run's tree pool or vessel).
     """
+    from sim4endor.rl.runs import evaluation_env
+
     fields = task_arguments(args)
-    if base is not None and args.domain is not None and args.domain != base.domain:
-        cleared: dict[str, Any] = dict.fromkeys(DOMAIN_FIELDS)
-        base = dataclasses.replace(base, **cleared)
     if args.domain is not None:
         fields.update(domain=args.domain, task=args.task)
     if args.reward is not None:
         fields["reward"] = args.reward
-    return dataclasses.replace(base or EnvConfig(), **fields)
+    return evaluation_env(base or EnvConfig(), fields)

@@ -18,7 +18,7 @@ if TYPE_CHECKING:  # imported by the commands that run: it loads torch
 
 
 def _run_or_policy(spec: str) -> Path | str:
-    return spec if spec in arg_types.EXPERT_POLICIES else assets.run_or_policy(spec)
+    return spec if spec in arg_types.REFERENCE_POLICIES else assets.run_or_policy(spec)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -38,9 +38,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="folder written by `sim4endor train --out`, a shipped "
                              "pretrained policy's name: "
                              f"{', '.join(assets.policy_names()) or 'none'}; or, with "
-                             "--vessel, a privileged scripted expert on every target: "
-                             "'expert' (reactive) or 'probing-expert' (simulates aims ahead "
-                             "where it is stuck: is every target within the wire's reach?)")
+                             "--vessel, a reference on every target: a privileged scripted "
+                             "expert, 'expert' (reactive) or 'probing-expert' (simulates aims "
+                             "ahead where it is stuck: is every target within the wire's "
+                             "reach?), or an open-loop one, 'insert' (the constant push [1, "
+                             "0]) or 'random' (uniform random actions)")
     parser.add_argument("--trials", type=arg_types.positive_int,
                         help="episodes (default: 10 on the run's task or one --target; per "
                              "case with --suite, per target with --vessel alone: 1)")
@@ -78,12 +80,12 @@ def run(args: argparse.Namespace) -> int:
     from sim4endor.rl.runs import evaluate_run
 
     torch.set_num_threads(1)  # small networks: one thread is fastest and leaves cores free
-    if args.run_dir in arg_types.EXPERT_POLICIES:
+    if args.run_dir in arg_types.REFERENCE_POLICIES:
         if args.vessel is None or args.target is not None or args.suite:
             raise Sim4EndoRError(
                 f"RUN_OR_POLICY '{args.run_dir}' runs on every target of a vessel: give "
-                "--vessel NAME_OR_DIR, without --target or --suite (the suite has the expert's "
-                "rows).")
+                "--vessel NAME_OR_DIR, without --target or --suite (the suite has the "
+                "reference rows).")
         return _run_vessel(args)
     if args.suite:
         return _run_suite(args)
@@ -139,11 +141,14 @@ def _run_vessel(args: argparse.Namespace) -> int:
     """Every target of ``--vessel`` (``--trials`` each): the metrics over all of them and per
     target, as a table or one JSON line."""
     from sim4endor.rl import generalisation
-    from sim4endor.rl.baselines import ScriptedExpert
+    from sim4endor.rl.baselines import Baseline, ConstantAction, RandomActions, ScriptedExpert
 
     config = _with_flags(generalisation.SuiteConfig(trials=args.trials or 1), args)
-    policy = (ScriptedExpert(probing=args.run_dir == arg_types.PROBING_EXPERT)
-              if args.run_dir in arg_types.EXPERT_POLICIES else args.run_dir)
+    references: dict[str, Baseline] = {arg_types.INSERT: ConstantAction(1.0, 0.0),
+                  arg_types.RANDOM: RandomActions(config.seed),
+                  arg_types.EXPERT: ScriptedExpert(),
+                  arg_types.PROBING_EXPERT: ScriptedExpert(probing=True)}
+    policy: Path | Baseline = references.get(args.run_dir) or args.run_dir
     metrics = generalisation.evaluate_vessel(policy, args.vessel, config,
                                              progress=not args.no_progress)
     if args.json:

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from sim4endor.suite import NavigationEnvironment
 
 Policy = Callable[[np.ndarray], np.ndarray]
-BUILTIN_POLICIES = ("insert", "random", *arg_types.EXPERT_POLICIES)
+BUILTIN_POLICIES = arg_types.REFERENCE_POLICIES
 TARGET_RGBA = np.array([0.1, 0.9, 0.2, 0.8], dtype=np.float32)
 #: The wire overlay of videos and figures: 0.5 mm radius, 3 px across at 640 px per phantom.
 WIRE_RADIUS = 0.5e-3

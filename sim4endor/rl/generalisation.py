@@ -310,7 +310,7 @@ def evaluate_vessel(policy: Path | baselines.Baseline, vessel: str | Path, confi
     config = config.for_run(run_env)
     base = evaluation_env(run_env, {"domain": "vessel", "task": "navigate",
                                     "vessel": str(loaded.root), "wire": config.wire,
-                                    "tip": config.tip})
+                                    "tip": config.tip, "fidelity": config.fidelity})
     cases = [Case("vessel", target, dataclasses.replace(base, target=target))
              for target in sorted(loaded.targets)]
     envs = CaseEnvironments()

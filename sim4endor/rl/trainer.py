@@ -190,7 +190,7 @@ def _train(
     loop = _Loop(config, run_dir, agent, replay, logger, eval_env)
     try:
         state = loop.run(make_env, state, progress)
-        return loop.final_evaluation(state)
+        return loop.final_evaluation(state, progress)
     finally:
         eval_env.close()
 
@@ -475,8 +475,9 @@ class _Loop:
         if crossed(cfg.checkpoint_interval_frames):
             checkpoint.save_checkpoint(self.run_dir, self.agent, state, self.replay)
 
-    def evaluate(self, state: checkpoint.Progress) -> dict[str, Any]:
-        """Evaluates the deterministic policy, logs and appends the metrics; returns them."""
+    def evaluate(self, state: checkpoint.Progress, progress: bool = False) -> dict[str, Any]:
+        """Evaluates the deterministic policy, logs and appends the metrics; returns them.
+        ``progress``: a bar of its own (the periodic ones show on the training bar)."""
         cfg = self.config
         episodes = rollout_episodes(
             self.eval_env,
@@ -485,6 +486,7 @@ class _Loop:
             max_steps=cfg.eval.max_steps,
             seed=cfg.seed + EVAL_SEED_OFFSET,
             keys=self.keys,
+            progress=progress,
         )
         metrics = evaluation_record(state, episodes)
         self.last_eval = f"{round(metrics['success_rate'] * len(episodes))}/{len(episodes)}"
@@ -531,7 +533,8 @@ class _Loop:
         self._save_weights(best, state, metrics)
         _LOG.info("%s: the best evaluation so far; its weights are in %s", self.run_dir.name, best)
 
-    def final_evaluation(self, state: checkpoint.Progress) -> dict[str, Any]:
-        metrics = self.evaluate(state)
+    def final_evaluation(self, state: checkpoint.Progress, progress: bool) -> dict[str, Any]:
+        # Minutes on a coronary task: shown as evaluate shows it, not as a silent pause.
+        metrics = self.evaluate(state, progress)
         write_final_evaluation(self.run_dir, metrics)
         return metrics
