@@ -238,3 +238,14 @@ def test_the_open_loop_baselines_run_on_a_vessel_folder_like_the_expert(
     assert status == 0 and metrics["trials"] == 1 and set(metrics["targets"]) == {"A"}
     if baseline == "insert":  # the tube is straight: pushing reaches its end
         assert metrics["success_rate"] == 1.0
+
+
+def test_onnx_export_says_only_what_it_wrote(tmp_path: Path,
+                                             capfd: pytest.CaptureFixture[str]) -> None:
+    # It printed four "torchvision is not installed" lines and a FutureWarning.
+    out = tmp_path / "policy"
+    assert main(["export", "generalist", "--out", str(out), "--onnx"]) == 0
+    captured = capfd.readouterr()
+    assert captured.out.split() == [str(out / name)
+                                    for name in ("policy.pt", "policy.json", "policy.onnx")]
+    assert "torchvision" not in captured.err and "Warning" not in captured.err

@@ -16,8 +16,12 @@ PPO: the tanh-normal's deterministic sample), exactly what ``sim4endor evaluate`
 
 from __future__ import annotations
 
+import contextlib
 import json
+import logging
 import tempfile
+import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -230,6 +234,22 @@ def _observation_layout(names: tuple[str, ...], obs_dim: int) -> list[dict[str, 
     return layout
 
 
+@contextlib.contextmanager
+def _quiet_exporter() -> Iterator[None]:
+    """Keeps the ONNX exporter's chatter out of the command's output: a line per torchvision
+    operator it skips (torchvision is not a dependency) and PyTorch's own deprecation
+    warnings, which say nothing about the policy."""
+    exporter = logging.getLogger("torch.onnx")
+    level = exporter.level
+    exporter.setLevel(logging.ERROR)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)
+            yield
+    finally:
+        exporter.setLevel(level)
+
+
 def _export_onnx(policy: nn.Module, example: torch.Tensor, path: Path) -> Path:
     """Writes ``policy`` as one self-contained ONNX file at ``path`` (atomically)."""
     try:
@@ -251,7 +271,8 @@ def _export_onnx(policy: nn.Module, example: torch.Tensor, path: Path) -> Path:
     # The exporter may keep the weights in a file beside its output, named after it; staged
     # in a folder of its own, loaded back with them and written as one file, the exported
     # policy.onnx is all a robot needs (a copy of policy.onnx alone runs).
-    with tempfile.TemporaryDirectory(prefix=f".{path.name}.", dir=path.parent) as staging:
+    with (tempfile.TemporaryDirectory(prefix=f".{path.name}.", dir=path.parent) as staging,
+          _quiet_exporter()):
         staged = Path(staging) / path.name
         torch.onnx.export(policy, (example,), str(staged), input_names=["observation"],
                           output_names=["action"], **batch)
