@@ -133,22 +133,22 @@ MERGE_FRACTION = 1e-4
 
 
 def merge_close_vertices(mesh: trimesh.Trimesh) -> None:
-    """Snaps (in place) the vertices of ``mesh`` to a grid of at most :data:`MERGE_FRACTION`
-    of its median edge, a power of ten, and merges those that meet.
+    """Merges (in place) the vertices of ``mesh`` that meet on a grid of at most
+    :data:`MERGE_FRACTION` of its median edge, a power of ten.
 
     trimesh's own merge rounds coordinates to a fixed 1e-8 in the mesh's units, so one lumen
     merged differently in metres, millimetres and micrometres: marching-cubes vertices a few
     nanometres apart were merged in metres only, and in millimetres the decimation then broke
-    the lumen ("non-manifold boundary"). On a grid set by the mesh's own edges, the same
-    points merge in any unit; snapped to it, a lumen given in millimetres or in micrometres
-    has the same coordinates once in metres, so every later step treats them alike.
+    the lumen ("non-manifold boundary"). On a grid set by the mesh's own edges (and the mesh
+    in metres, as :func:`prepare_lumen` has it), the same points merge in any unit; for a
+    lumen of sub-millimetre edges in metres the grid is trimesh's own, so the shipped phantoms
+    rebuild bit for bit.
     """
     edges = mesh.edges_unique_length
     edges = edges[edges > 0]
     if not edges.size:
         return
     digits = int(-math.floor(math.log10(MERGE_FRACTION * float(np.median(edges)))))
-    mesh.vertices = np.round(mesh.vertices, digits)
     mesh.merge_vertices(merge_tex=True, merge_norm=True, digits_vertex=digits)
 
 
