@@ -12,6 +12,10 @@ the paper's observation; it is
   phantoms);
 - a source of demonstrations and a sanity reference for learnt policies.
 
+The steering itself, towards any labelled node, is :mod:`sim4endor.tasks.steering`'s (with
+:class:`ExpertConfig`): the redirect tasks' wrong-branch starts drive with it too, below the
+task that this module's experts read.
+
 :class:`ProbingExpert` adds lookahead for the reachability check: where the expert is stuck it
 simulates several aims on a copy of the simulation and follows the one that gets furthest.
 One of them, :class:`PullBackEntry`, is the interventionist's way into an angulated side
@@ -30,234 +34,41 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import itertools
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from dm_control.rl import control
-from numpy.typing import NDArray
 
 from sim4endor import rewards
 from sim4endor.physics import GuidewirePhysics
-from sim4endor.tasks.anatomy import Anatomy
-from sim4endor.vessels.centerline import INLET_LABEL, Projection
+from sim4endor.tasks.navigation import NavigationTask
+from sim4endor.tasks.steering import (
+    FIXED_AIM,
+    CenterlineSteering,
+    ExpertConfig,
+    FloatArray,
+    along_path,
+    to_target,
+)
+from sim4endor.vessels.centerline import INLET_LABEL
 
-if TYPE_CHECKING:  # navigation imports this module for its wrong-branch starts
-    from sim4endor.tasks.navigation import NavigationTask
-
-FloatArray = NDArray[np.float64]
 #: Anything that maps the simulation's state to an action, as the experts do.
-Policy = Callable[[GuidewirePhysics, "NavigationTask"], FloatArray]
+Policy = Callable[[GuidewirePhysics, NavigationTask], FloatArray]
 
 
-@dataclass(frozen=True)
-class ExpertConfig:
-    """Gains and thresholds of :class:`CenterlineExpert` (SI units).
-
-    Attributes:
-        lookahead: The path direction is taken from the tip's projection on the centerline to
-            the point this far (m) along the path to the target.
-        straight: Below this lateral component (of a unit vector, relative to the wire's body
-            axis) the path runs straight ahead and the tip's roll does not matter.
-        tolerance_deg: Insert only while the tip's bend points within this angle of the path's
-            turn; otherwise only roll.
-        push: Insertion action while aligned (fraction of the largest step).
-        slow_force: Tip contact force (N) above which the push drops to ``slow_push``.
-        slow_push: Insertion action while the tip presses on the wall.
-        back_force: Tip contact force (N) above which the wire is pulled back a little.
-        back_push: Insertion action (negative: retraction) while the tip presses that hard.
-        lost: A manifold distance this much (m) above the best of the episode means the tip
-            took a wrong branch.
-        back_off_steps: Control steps of full retraction after a wrong branch.
-        stall: A carriage lagging its commanded insertion by this much (m) pushes at the
-            driver's force limit: the wire is blocked (buckled, or caught on the wall), and
-            pushing on only winds up the command until the insertion limit ends the episode;
-            the expert pulls back (``back_push``) instead, as a hand feels the resistance.
-        tip_length: Arc length of the wire's pre-bent tip (m); the body axis is measured just
-            proximal of it. ``None`` (default): the shaped part of the wire in the physics
-            (its tip, and a secondary curve behind it if it has one), whatever its preset (a
-            2 mm workhorse tip measured as a 5 mm one mixes the tip's bend into the body
-            axis).
-        roll_offset_deg: Aim the tip's bend this far (about the body axis) from the path's
-            turn; 0 aims at the turn. :class:`ProbingExpert` tries several.
-        retry_offsets_deg: After each retreat from a wrong branch, and after ``retry_steps``
-            control steps that bring the tip no closer to the target, aim with the next of
-            these offsets (added to ``roll_offset_deg``, cyclically), as a hand that failed
-            to enter a branch tries again at another angle: the same aim meets the same
-            ostium the same wrong way (docs/tasks/coronary.md). Empty: always the same aim.
-        retry_steps: Control steps without a new closest approach that count as a failed
-            attempt.
-        sweep_deg: Where the path turns, sweep the aim this far (deg) to either side of it,
-            sinusoidally, while pushing: the interventionist's back-and-forth rotation of the
-            wire as it advances past a side branch, which lets the bent tip brush over the
-            ostium at many rolls instead of meeting it at one. The tip's roll lags and whips
-            behind the carriage's (docs/guidewire.md), so which fixed aim enters a narrow
-            branch is a guess; the sweep tries them all on the way. While sweeping, the
-            expert pushes whenever the bend is within ``max(tolerance_deg, sweep_deg)`` of
-            the moving aim: the carriage's top roll rate (180 deg/s) trails the sweep's
-            (``2 pi sweep_deg / sweep_period``, 283 deg/s at the defaults). 0: one fixed aim
-            at a time (:data:`FIXED_AIM`). The defaults were chosen on the vessel-folder
-            check trees (docs/tasks/coronary.md, 2026-11-28).
-        sweep_period: Period (s) of the sweep, in episode time.
-    """
-
-    lookahead: float = 0.006
-    straight: float = 0.15
-    tolerance_deg: float = 25.0
-    push: float = 0.6
-    slow_force: float = 0.25
-    slow_push: float = 0.2
-    back_force: float = 0.5
-    back_push: float = -0.5
-    lost: float = 0.004
-    back_off_steps: int = 8
-    stall: float = 0.002
-    tip_length: float | None = None
-    roll_offset_deg: float = 0.0
-    retry_offsets_deg: tuple[float, ...] = (0.0, 45.0, -45.0, 90.0, -90.0, 180.0)
-    retry_steps: int = 60
-    sweep_deg: float = 90.0
-    sweep_period: float = 2.0
-
-
-#: The expert without the sweep: one aim at a time. :class:`ProbingExpert` tries its aims so,
-#: one per simulated copy (its probes stand in for the sweep, and its published results were
-#: measured so), and the redirect tasks' starts drive the wire into the other branch with it
-#: (``sim4endor.tasks.starts``; their depths and times were fitted to it).
-FIXED_AIM = ExpertConfig(sweep_deg=0.0)
-
-
-class CenterlineExpert:
-    """Scripted policy for a :class:`~sim4endor.tasks.NavigationTask`.
+class CenterlineExpert(CenterlineSteering):
+    """Scripted policy for a :class:`~sim4endor.tasks.NavigationTask`: the steering towards
+    the task's target.
 
     Call :meth:`reset` at the start of every episode (:func:`run_expert` does).
     """
-
-    def __init__(self, config: ExpertConfig | None = None) -> None:
-        self.config = config or ExpertConfig()
-        self._neighbours: dict[str, list[list[int]]] = {}  # per anatomy
-        self.reset()
-
-    def reset(self) -> None:
-        """Forgets the episode (best distance, retraction under way, failed attempts)."""
-        self._best = math.inf
-        self._backing_off = 0
-        self._attempt = 0
-        self._attempt_best = math.inf
-        self._attempt_steps = 0
 
     def __call__(self, physics: GuidewirePhysics, task: NavigationTask) -> FloatArray:
         """Returns the action ``[insert, rotate]`` in [-1, 1] for the current state."""
         return self.steer(physics, task.anatomy, task.manifold_distance(),
                           task.config.action.max_rotation_step)
-
-    def steer(self, physics: GuidewirePhysics, anatomy: Anatomy,
-              distance: rewards.ManifoldDistance, max_rotation_step: float) -> FloatArray:
-        """Returns the action towards the node of ``distance`` (any labelled node, not only
-        the task's target), with rotation actions scaled by ``max_rotation_step`` (rad)."""
-        cfg = self.config
-        points = physics.wire_points()
-        proj = distance.project(points[-1])
-        d = distance.at(proj)
-        if self._backing_off:
-            self._backing_off -= 1
-            if not self._backing_off:
-                # Measure from where the retraction ended: above the bifurcation the tip is
-                # further from the target than where the wrong turn was seen, which would
-                # otherwise read as another wrong branch and pull the wire all the way out.
-                self._best = math.inf
-            return np.array([-1.0, 0.0])
-        if d > self._best + cfg.lost:
-            # The tip went down a branch off the path: pull it back above the bifurcation.
-            self._backing_off = cfg.back_off_steps - 1
-            self._best = d
-            self._attempt, self._attempt_steps = self._attempt + 1, 0
-            return np.array([-1.0, 0.0])
-        self._best = min(self._best, d)
-        if d < self._attempt_best:
-            self._attempt_best, self._attempt_steps = d, 0
-        else:
-            self._attempt_steps += 1
-            if self._attempt_steps >= cfg.retry_steps:
-                self._attempt, self._attempt_steps = self._attempt + 1, 0
-
-        force = physics.tip_contact_force()
-        path = _unit(self._path_ahead(distance, self._adjacency(anatomy), proj))
-        body, bend, turn = self._across_body(physics, points, path)
-        aligned = True
-        rotate = 0.0
-        if np.linalg.norm(turn) >= cfg.straight and np.linalg.norm(bend) > 1e-9:
-            phi = self._roll_angle(body, bend, turn)
-            offset = cfg.roll_offset_deg
-            if cfg.retry_offsets_deg:
-                offset += cfg.retry_offsets_deg[self._attempt % len(cfg.retry_offsets_deg)]
-            if cfg.sweep_deg:
-                # Keyed on the episode's time, so a copy of the physics sweeps in step.
-                offset += cfg.sweep_deg * math.sin(2 * math.pi * physics.time()
-                                                   / cfg.sweep_period)
-            if offset:
-                phi = _wrap(phi - math.radians(offset))
-            rotate = float(np.clip(phi / max_rotation_step, -1.0, 1.0))
-            aligned = abs(math.degrees(phi)) < max(cfg.tolerance_deg, cfg.sweep_deg)
-        stalled = physics.driver_targets()[0] - physics.insertion_depth() > cfg.stall
-        if force > cfg.back_force or stalled:
-            insert = cfg.back_push
-        elif not aligned:
-            insert = 0.0
-        elif force > cfg.slow_force:
-            insert = cfg.slow_push
-        else:
-            insert = cfg.push
-        return np.array([insert, rotate])
-
-    def roll_error(self, physics: GuidewirePhysics, points: FloatArray,
-                   toward: FloatArray) -> float:
-        """Roll angle (rad, in [-pi, pi]) that would turn the tip's bend to point at
-        ``toward`` (a direction), about the wire's body axis."""
-        return self._roll_angle(*self._across_body(physics, points, toward))
-
-    def _across_body(self, physics: GuidewirePhysics, points: FloatArray,
-                     toward: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """The body axis, and the tip's heading and ``toward`` across it."""
-        heading = _unit(points[-1] - points[-2])
-        body = self._body_axis(points, physics.shape_start_index())
-        return body, heading - (heading @ body) * body, toward - (toward @ body) * body
-
-    @staticmethod
-    def _roll_angle(body: FloatArray, bend: FloatArray, turn: FloatArray) -> float:
-        """Angle from ``bend`` to ``turn`` about ``body`` (rad)."""
-        return math.atan2(float(body @ np.cross(bend, turn)), float(bend @ turn))
-
-    def _adjacency(self, anatomy: Anatomy) -> list[list[int]]:
-        key = anatomy.key
-        if key not in self._neighbours:
-            self._neighbours[key] = anatomy.vessel.centerline.neighbours()
-        return self._neighbours[key]
-
-    def _body_axis(self, points: FloatArray, shape_start: int) -> FloatArray:
-        """Direction of the wire just proximal of its shaped part (which starts at vertex
-        ``shape_start`` unless the config gives the tip's length)."""
-        base = shape_start
-        if self.config.tip_length is not None:
-            from_tip = np.cumsum(np.linalg.norm(np.diff(points[::-1], axis=0), axis=1))
-            # 0.999: the tip's segments add up to tip_length only up to rounding.
-            length = self.config.tip_length * 0.999
-            base = len(points) - 1 - int(np.searchsorted(from_tip, length)) - 1
-        base = max(base, 2)
-        return _unit(points[base] - points[base - 2])
-
-    def _path_ahead(self, distance: rewards.ManifoldDistance, neighbours: list[list[int]],
-                    proj: Projection) -> FloatArray:
-        """Vector from the tip's projection to the path point ``lookahead`` further on."""
-        graph, dist = distance.graph, distance.node_distances
-        i, j = graph.edges[proj.edge]
-        node = int(i if dist[i] < dist[j] else j)
-        travelled = float(np.linalg.norm(graph.nodes[node] - proj.point))
-        ahead = _along_path(distance, neighbours, node, self.config.lookahead, travelled)
-        return graph.nodes[ahead] - proj.point
 
 
 @dataclass(frozen=True)
@@ -328,6 +139,11 @@ class ProbingExpert(CenterlineExpert):
         self._closest = math.inf
         self._since = 0
         self._probes = 0
+
+    @property
+    def probes(self) -> int:
+        """Probes made this episode (at most ``probe.max_probes``)."""
+        return self._probes
 
     def __call__(self, physics: GuidewirePhysics, task: NavigationTask) -> FloatArray:
         """Returns the next action: the plan's while one is being followed."""
@@ -445,7 +261,7 @@ class PullBackEntry:
         if self.phase == "advance":
             if not tip_on_path:
                 start = i if dist[i] < dist[j] else j
-                node = next(n for n in _to_target(dist, neighbours, start) if n in on_path)
+                node = next(n for n in to_target(dist, neighbours, start) if n in on_path)
                 if d - dist[node] >= self.overshoot:
                     self.junction, self.phase = node, "turn"
             if self.phase == "advance":
@@ -456,7 +272,7 @@ class PullBackEntry:
             self.phase = "push"
             self.plain.reset()
             return self.plain(physics, task)
-        branch = _along_path(distance, neighbours, self.junction, self.into)
+        branch = along_path(distance, neighbours, self.junction, self.into)
         phi = self.plain.roll_error(physics, points, graph.nodes[branch] - points[-1])
         rotate = float(np.clip(phi / task.config.action.max_rotation_step, -1.0, 1.0))
         if self.phase == "turn":
@@ -466,32 +282,10 @@ class PullBackEntry:
         return np.array([self.pull, rotate])
 
 
-def _to_target(dist: FloatArray, neighbours: list[list[int]], node: int) -> Iterator[int]:
-    """The centerline nodes from ``node`` to the target (``dist`` is each node's distance to
-    it), each step to the neighbour nearest the target."""
-    yield node
-    while closer := [n for n in neighbours[node] if dist[n] < dist[node]]:
-        node = min(closer, key=lambda n: dist[n])
-        yield node
-
-
-def _along_path(distance: rewards.ManifoldDistance, neighbours: list[list[int]], node: int,
-                length: float, travelled: float = 0.0) -> int:
-    """The node ``length`` (m) along the path from ``node`` towards the target (the target if
-    it is nearer), counting ``travelled`` as already covered."""
-    nodes = distance.graph.nodes
-    for nxt in itertools.islice(_to_target(distance.node_distances, neighbours, node), 1, None):
-        if travelled >= length:
-            break
-        travelled += float(np.linalg.norm(nodes[nxt] - nodes[node]))
-        node = nxt
-    return node
-
-
 def _path_nodes(distance: rewards.ManifoldDistance, neighbours: list[list[int]]) -> set[int]:
     """The centerline nodes on the path from the inlet to the target of ``distance``."""
     inlet = int(distance.graph.labels[INLET_LABEL])
-    return set(_to_target(distance.node_distances, neighbours, inlet))
+    return set(to_target(distance.node_distances, neighbours, inlet))
 
 
 def lookahead(physics: GuidewirePhysics, task: NavigationTask, expert: Policy,
@@ -534,13 +328,3 @@ def run_expert(env: control.Environment, expert: CenterlineExpert | None = None,
         timestep = env.step(expert(env.physics, env.task))
         steps += 1
     return env.task.step_info()
-
-
-def _wrap(angle: float) -> float:
-    """``angle`` (rad) in [-pi, pi)."""
-    return (angle + math.pi) % (2 * math.pi) - math.pi
-
-
-def _unit(v: FloatArray) -> FloatArray:
-    n = float(np.linalg.norm(v))
-    return v / n if n > 0 else v

@@ -15,7 +15,7 @@ from sim4endor.physics import GuidewirePhysics
 from sim4endor.rewards import ManifoldDistance
 from sim4endor.tasks.anatomy import Anatomy
 from sim4endor.tasks.config import ActionConfig
-from sim4endor.tasks.expert import FIXED_AIM, CenterlineExpert
+from sim4endor.tasks.steering import FIXED_AIM, CenterlineSteering
 
 #: Control steps the expert may take to get the tip off the path; the phantoms need 30-60.
 MAX_DRIVE_STEPS = 400
@@ -59,13 +59,13 @@ def drive_off_path(
     """
     to_decoy, to_target, to_inlet = distances
     inlet_to_target = float(to_target.node_distances[to_inlet.target_node])
-    expert = CenterlineExpert(FIXED_AIM)
+    steering = CenterlineSteering(FIXED_AIM)
     insertion, rotation = physics.driver_targets()
     for _ in range(MAX_DRIVE_STEPS):
         tip = physics.tip_position()
         if off_path_distance(to_target(tip), to_inlet(tip), inlet_to_target) >= depth:
             return insertion, rotation
-        insert, rotate = expert.steer(physics, anatomy, to_decoy, action.max_rotation_step)
+        insert, rotate = steering.steer(physics, anatomy, to_decoy, action.max_rotation_step)
         insertion = max(0.0, insertion + float(insert) * action.max_insertion_step)
         rotation += float(rotate) * action.max_rotation_step
         step(physics, insertion, rotation, action)
