@@ -122,6 +122,17 @@ def test_the_tasks_form_no_circle_even_in_their_type_annotations() -> None:
     assert circles(tasks) == []
 
 
+def test_the_libraries_import_no_command_line() -> None:
+    # The command line (sim4endor.cli) is built on the vessels, models and tasks; its shared
+    # argument types live below all of them, in sim4endor._argtypes.
+    graph = import_graph(type_checking=True)
+    assert graph["sim4endor._argtypes"] == set()
+    libraries = ("sim4endor.vessels", "sim4endor.models", "sim4endor.tasks")
+    for name, imported in graph.items():
+        if any(_within(name, library) for library in libraries):
+            assert not {m for m in imported if _within(m, "sim4endor.cli")}, name
+
+
 def test_the_models_import_nothing_built_on_them() -> None:
     # sim4endor.physics builds on the models; the bench tests that drive the physics live in
     # sim4endor.benches, above it (issue 67).

@@ -1,16 +1,22 @@
-"""Argument types shared by the subcommands: argparse rejects a bad value with its name."""
+"""Argument types shared by the subcommands: argparse rejects a bad value with its name.
+
+The plain number types are :mod:`sim4endor._argtypes`' (the vessel library's own command takes
+them too), re-exported here so that every subcommand finds its types in one place.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 from typing import Any
 
+from sim4endor._argtypes import positive_float as positive_float
+from sim4endor._argtypes import positive_int as positive_int
+from sim4endor._argtypes import seed as seed
 from sim4endor.models.fidelity import FIDELITIES
 from sim4endor.observations import OBSERVATION_SETS
-from sim4endor.rl.config import MAX_SEED, EnvConfig
+from sim4endor.rl.config import EnvConfig
 
 #: The policy names of the privileged scripted experts (``sim4endor.tasks.expert``), taken by
 #: ``render``, ``view`` and ``evaluate``: the reactive one, and the probing one, the
@@ -21,40 +27,6 @@ EXPERT_POLICIES = (EXPERT, PROBING_EXPERT)
 #: the constant push ``[1, 0]`` and uniform random actions (seeded by ``--seed``).
 INSERT, RANDOM = "insert", "random"
 REFERENCE_POLICIES = (INSERT, RANDOM, *EXPERT_POLICIES)
-
-
-def positive_int(text: str) -> int:
-    """An integer >= 1 (a count: frames, environments, trials, pixels)."""
-    value = _int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return value
-
-
-def positive_float(text: str) -> float:
-    """A finite number > 0 (a length, a thickness)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
-    return value
-
-
-def seed(text: str) -> int:
-    """A random seed: an integer in [0, MAX_SEED]."""
-    value = _int(text)
-    if not 0 <= value <= MAX_SEED:
-        raise argparse.ArgumentTypeError(f"must be an integer in [0, {MAX_SEED}], got {text!r}")
-    return value
-
-
-def _int(text: str) -> int:
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
 
 
 def tip_shape(text: str) -> str:

@@ -20,6 +20,7 @@ from typing import Any, Literal
 
 import yaml
 
+from sim4endor._argtypes import MAX_SEED
 from sim4endor._checks import require
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.observations import OBSERVATION_SETS, OBSERVATION_UNITS
@@ -32,11 +33,6 @@ CollectorBackend = Literal["local", "ray"]
 
 class ConfigError(Sim4EndoRError, ValueError):
     """A configuration file or override names an unknown field or holds a bad value."""
-
-
-#: Largest seed: torch, numpy and the collectors take seeds below 2**32, and the evaluation
-#: and resumption offsets are added to it.
-MAX_SEED = 2**31 - 1
 
 
 def _check(config: object, section: str, **rules: tuple[str, ...]) -> None:

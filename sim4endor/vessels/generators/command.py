@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from sim4endor.cli import args as arg_types
+from sim4endor import _argtypes
 from sim4endor.vessels.generators import GENERATORS, GeneratedAnatomy
 from sim4endor.vessels.generators.paths import GeneratorConfigError
 
@@ -160,7 +160,7 @@ def add_generate_parser(subparsers: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("generator", choices=sorted(GENERATORS), help="what to generate")
-    parser.add_argument("--seed", type=arg_types.seed, default=0, help="generator seed (default 0)")
+    parser.add_argument("--seed", type=_argtypes.seed, default=0, help="generator seed (default 0)")
     parser.add_argument("--name", default=None, help="vessel name (default: generator name)")
     parser.add_argument("--out", type=Path, default=None, help="vessel folder (default ./NAME)")
     parser.add_argument("--set", dest="overrides", action="append", default=[],
