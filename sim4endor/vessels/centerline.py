@@ -262,20 +262,25 @@ class CenterlineGraph:
         work array holds ``chunk`` x 2 x edges numbers)."""
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         out = np.empty(len(points))
-        edges = len(self._abab)
         for first in range(0, len(points), chunk):
-            p = points[first:first + chunk]
-            # Few numpy calls (ufuncs, no Python-level wrappers such as np.clip): right after a
-            # physics step the CPU caches are cold and each call, not the arithmetic, is what
-            # costs (the navigation task reads one point every step).
-            both = np.hstack([p, np.ones((len(p), 1))]) @ self._projector.T
-            along2, base = both[:, :edges], both[:, edges:]
-            t = np.minimum(np.maximum(along2 * self._half_inv_abab, 0.0), 1.0)
-            squared = np.maximum(base + t * (t * self._abab - along2)
-                                 + np.einsum("ij,ij->i", p, p)[:, None], 0.0)
-            radii = self._edge_radius_start + t * self._edge_radius_change
-            out[first:first + chunk] = (np.sqrt(squared) - radii).min(axis=1)
+            out[first:first + chunk] = self.edge_excesses(points[first:first + chunk]).min(axis=1)
         return out
+
+    def edge_excesses(self, points: FloatArray) -> FloatArray:
+        """Returns how far each of ``points`` (N, 3) lies outside each edge's tube: (N, edges),
+        m, negative inside. Holds N x 2 x edges numbers: pass points in chunks."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        edges = len(self._abab)
+        # Few numpy calls (ufuncs, no Python-level wrappers such as np.clip): right after a
+        # physics step the CPU caches are cold and each call, not the arithmetic, is what
+        # costs (the navigation task reads one point every step).
+        both = np.hstack([p, np.ones((len(p), 1))]) @ self._projector.T
+        along2, base = both[:, :edges], both[:, edges:]
+        t = np.minimum(np.maximum(along2 * self._half_inv_abab, 0.0), 1.0)
+        squared = np.maximum(base + t * (t * self._abab - along2)
+                             + np.einsum("ij,ij->i", p, p)[:, None], 0.0)
+        radii = self._edge_radius_start + t * self._edge_radius_change
+        return np.asarray(np.sqrt(squared) - radii)
 
     def radius_at_projection(self, proj: Projection) -> float:
         """Returns the lumen radius (m) interpolated at a projection onto the graph."""
