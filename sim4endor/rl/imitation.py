@@ -16,7 +16,7 @@ only its observation set. Two ways of asking them, both saved as :class:`Episode
 DAgger with the plain expert labelling every state the policy visits was measured and made
 the policy worse (the plain expert's retreats and retries follow its own history, so its
 labels on another driver's states contradict each other;
-experiments/results/generalisation/expert_dagger_2026-12-05_seed*.jsonl): hence the
+docs/results/generalisation/expert_dagger_rounds.csv): hence the
 takeovers, where the expert drives what it labels.
 """
 
