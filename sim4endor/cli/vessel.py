@@ -88,6 +88,7 @@ def run_build(args: argparse.Namespace) -> int:
             use_coacd=args.decomposition == "coacd",
         ),
         keep_largest=args.keep_largest,
+        trim_ends_below=(args.trim_ends_below or 0.0) * 1e-3,
     )
     license_text = args.license.read_text() if args.license else None
     vessel = build_vessel(
@@ -193,6 +194,12 @@ def add_build_parser(subparsers: Any) -> None:
     )
     parser.add_argument("--wall-thickness", type=arg_types.positive_float, default=0.8,
                         help="wall thickness (mm, > 0)")
+    parser.add_argument(
+        "--trim-ends-below", type=arg_types.positive_float, default=None, metavar="MM",
+        help="cut the centerline's vessel ends back to where the lumen radius reaches MM: "
+        "ends narrower than a wire can use leave the checks and the targets (the lumen and "
+        "its wall stay whole)",
+    )
     parser.add_argument(
         "--keep-largest",
         action="store_true",

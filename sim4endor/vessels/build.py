@@ -39,12 +39,15 @@ from sim4endor.vessels.axis import AxisSamples, branch_chains, sample_axis
 from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph, arc_lengths
 from sim4endor.vessels.checks import (
     CheckParams,
+    LumenProbes,
+    blocked_place,
     inlet_cap,
-    lumen_open_fraction,
+    lumen_probes,
     stray_openings,
     wall_closed_fraction,
     wall_probes,
 )
+from sim4endor.vessels.ends import trim_narrow_ends
 from sim4endor.vessels.manifest import MANIFEST_FILE, Inlet, Manifest, below_acceptance
 from sim4endor.vessels.meshio import (
     UNIT_SCALE,
@@ -96,6 +99,9 @@ class BuildParams:
         max_hole_perimeter: Side-wall holes below this many lumen radii around are filled.
         resolution: When the lumen is decimated or its long edges split before the wall is
             built (:mod:`.remesh`).
+        trim_ends_below: Cut the centerline's vessel ends back to where the lumen radius is
+            at least this (m; 0: keep them): such ends leave the checks and the targets
+            (:mod:`.ends`). The lumen and its wall are kept whole.
     """
 
     wall: WallParams = field(default_factory=WallParams)
@@ -104,6 +110,7 @@ class BuildParams:
     keep_largest: bool = False
     max_hole_perimeter: float = 3.0
     resolution: RemeshParams = field(default_factory=RemeshParams)
+    trim_ends_below: float = 0.0
 
 
 def cache_root() -> Path:
@@ -204,9 +211,34 @@ def _close_wall_holes(
             f"below {max_perimeter:g} lumen radii around are filled automatically)."
         )
     if stray:
-        logger.info("%s: filled %d small hole(s) in the wall", source, len(stray))
-        return close_openings(prepared, [o.loop for o in stray])
+        closed = close_openings(prepared, [o.loop for o in stray])
+        # Named one by one: a thin vessel end that the extracted centerline stops short of
+        # looks the same here, and a user must be able to tell which openings were closed.
+        where = "; ".join(
+            f"{o.perimeter / (2 * np.pi) * 1e3:.2f} mm radius near "
+            f"{np.round(o.centre / prepared.scale, 2).tolist()}" for o in stray)
+        logger.warning(
+            "%s: closed %d opening(s) that no centerline end reaches as holes in the wall: %s "
+            "(the manifest counts %d filled holes in all). If one is a vessel end, the "
+            "centerline stops short of it: pass one that reaches it with --centerline.",
+            source, len(stray), where, closed.report.filled_holes)
+        return closed
     return prepared
+
+
+#: What to do about a build below acceptance, after the place is named.
+_REMEDY = ("Where the lumen is narrower than a wire can use, trim those ends off the centerline "
+           "(--trim-ends-below MM, BuildParams.trim_ends_below); elsewhere the wall hulls reach "
+           "into the lumen: look at the mesh there (a fold, a flat facet across a bend, a "
+           "narrowing) and smooth or subdivide it, or pass --allow-below-acceptance "
+           "(allow_below_acceptance=True) to keep the folder as it is.")
+
+
+def _where_blocked(probes: LumenProbes, axis: AxisSamples, graph: CenterlineGraph,
+                   scale: float) -> str:
+    """``": N of the M blocked probes lie ..."`` naming the worst branch, or nothing."""
+    place = blocked_place(probes, axis)
+    return "" if place is None else f": {place.describe(scale, graph)}"
 
 
 #: How far (in lumen radii) a given inlet or target may lie outside the lumen before the build
@@ -457,11 +489,10 @@ def build_vessel(
         logger.info("%s: unchanged inputs, using the cached build %s", name, key[:12])
         failed = Manifest.load(cached).below_acceptance
         if failed and not allow_below_acceptance:
+            where = Manifest.load(cached).build.get("below_acceptance", failed)
             raise BuildError(
-                f"{name}: {failed} (a cached build of the same inputs); nothing was written. "
-                "Remesh the lumen finer, or pass --allow-below-acceptance "
-                "(allow_below_acceptance=True) to keep it."
-            )
+                f"{name}: {where} (a cached build of the same inputs); nothing was written. "
+                f"{_REMEDY}")
         with atomic_directory(out_dir) as staging:
             shutil.copytree(cached, staging, dirs_exist_ok=True)
             (staging / "README.md").write_text(
@@ -497,6 +528,17 @@ def build_vessel(
                     "inlet (snapped to the nearest vessel end)", scale, name)
     if inlet_choice.startswith("widest vessel end, but"):
         logger.warning("%s: inlet chosen as the %s", name, inlet_choice)
+    # The wall is cut and thickened on the whole centerline; the checks and targets use the
+    # trimmed one.
+    wall_graph = centerline
+    centerline, trimmed, new_index = trim_narrow_ends(centerline, params.trim_ends_below,
+                                                      keep=[inlet_node])
+    inlet_node = int(new_index[inlet_node])
+    for end in trimmed:
+        logger.info("%s: trimmed %.3g mm of the centerline narrower than %.3g mm off the vessel "
+                    "end at %s (input units; its widest %.3g mm)", name, end.length * 1e3,
+                    params.trim_ends_below * 1e3, np.round(np.asarray(end.end) / scale, 2).tolist(),
+                    end.radius * 1e3)
     target_points = _choose_targets(
         centerline,
         inlet_node,
@@ -514,9 +556,10 @@ def build_vessel(
     inlet_radius = float(graph.radii[inlet_node])
 
     axis = sample_axis(graph)
-    mesh = _orient_outward(prepared.mesh, axis)
+    wall_axis = sample_axis(wall_graph) if trimmed else axis
+    mesh = _orient_outward(prepared.mesh, wall_axis)
     walled = ~inlet_cap(mesh, inlet_pos, inlet_dir, inlet_radius)
-    pieces, face_radius, face_u, face_angle = bin_faces(mesh, axis, params.wall)
+    pieces, face_radius, face_u, face_angle = bin_faces(mesh, wall_axis, params.wall)
     pieces = [p[walled[p]] for p in pieces]
     pieces = [p for p in pieces if len(p)]
     vertices, vertex_normals = np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals)
@@ -528,11 +571,12 @@ def build_vessel(
         face_radius=face_radius,
         face_u=face_u,
         face_angle=face_angle,
-        vertex_thickness=wall_thickness(vertices, vertex_normals, graph, params.wall.thickness),
+        vertex_thickness=wall_thickness(vertices, vertex_normals, wall_graph,
+                                        params.wall.thickness),
         params=params.wall,
     )
     hulls = build_hulls(ctx, pieces, progress=_progress(show, f"{name}: wall hulls"))
-    lumen_open, probe_count = lumen_open_fraction(hulls, axis, params.checks)
+    centerline_probes = lumen_probes(hulls, axis, params.checks)
     probes = wall_probes(
         ctx.vertices, ctx.faces, ctx.vertex_normals, ctx.face_normals, walled, ctx.vertex_thickness
     )
@@ -540,13 +584,12 @@ def build_vessel(
     given_checks: dict[str, float] = {}
     if given_centerline is not None and registration_report is not None:
         # The given curves, as they came, judged against the same hulls: nothing is hidden.
-        given_checks["lumen_open_given_centerline"], _ = lumen_open_fraction(
-            hulls, sample_axis(given_centerline), params.checks
-        )
+        given_checks["lumen_open_given_centerline"] = lumen_probes(
+            hulls, sample_axis(given_centerline), params.checks).open_fraction
     elapsed = time.perf_counter() - start
     checks = {
-        "lumen_open": lumen_open,
-        "lumen_probes": float(probe_count),
+        "lumen_open": centerline_probes.open_fraction,
+        "lumen_probes": float(len(centerline_probes.open)),
         "wall_closed": wall_closed,
         "wall_probes": float(len(probes)),
         "hull_count": float(len(hulls)),
@@ -556,6 +599,10 @@ def build_vessel(
     build_record = {**asdict(params), "repairs": asdict(prepared.report)}
     if inlet_choice != "given":  # a given inlet needs no word (and keeps old folders equal)
         build_record["inlet_choice"] = inlet_choice
+    if trimmed:
+        build_record["trimmed_ends"] = [
+            {"end": list(t.end), "length_mm": round(t.length * 1e3, 3),
+             "largest_radius_mm": round(t.radius * 1e3, 3)} for t in trimmed]
     if registration is not None and registration_report is not None:
         build_record["centerline_registration"] = {
             "params": asdict(registration),
@@ -564,13 +611,10 @@ def build_vessel(
     failed = below_acceptance(checks, params.checks.min_lumen_open,
                               params.checks.min_wall_closed)
     if failed:
+        failed += _where_blocked(centerline_probes, axis, graph, scale)
+        build_record["below_acceptance"] = failed
         if not allow_below_acceptance:
-            raise BuildError(
-                f"{name}: {failed}; nothing was written. A coarse or faceted lumen closes or "
-                "opens the wall: remesh it finer (edges of about a fifth of the lumen radius) "
-                "and build again, or pass --allow-below-acceptance (allow_below_acceptance="
-                "True) to keep the folder as it is."
-            )
+            raise BuildError(f"{name}: {failed}; nothing was written. {_REMEDY}")
         logger.warning("%s: %s; kept as asked (allow_below_acceptance)", name, failed)
     matrix = np.diag([scale, scale, scale, 1.0])
     manifest = Manifest(
@@ -620,7 +664,7 @@ def build_vessel(
         "%s: %d hulls, lumen open %.4f, wall closed %.4f, %.1f s",
         name,
         len(hulls),
-        lumen_open,
+        centerline_probes.open_fraction,
         wall_closed,
         elapsed,
     )

@@ -85,8 +85,33 @@ def hull_distance_bound(hulls: Sequence[Hull], points: FloatArray, reach: float)
     return best
 
 
-def lumen_probes(axis: AxisSamples, params: CheckParams) -> tuple[FloatArray, FloatArray]:
-    """Returns centerline probe points and their radii (m), every ``probe_spacing`` radii."""
+@dataclass(frozen=True)
+class LumenProbes:
+    """The lumen-open check's centerline probes and what it found at each.
+
+    Attributes:
+        points: (P, 3) probe positions (m).
+        radius: (P,) lumen radius at each (m).
+        branch: (P,) branch chain of each (:func:`~sim4endor.vessels.axis.branch_chains`).
+        end_distance: (P,) arc length to the branch's vessel end (m; ``inf`` on inner branches).
+        open: (P,) no hull within the clearance.
+    """
+
+    points: FloatArray
+    radius: FloatArray
+    branch: NDArray[np.int64]
+    end_distance: FloatArray
+    open: NDArray[np.bool_]
+
+    @property
+    def open_fraction(self) -> float:
+        """The fraction of open probes (1 without probes)."""
+        return float(self.open.mean()) if len(self.open) else 1.0
+
+
+def lumen_probes(hulls: Sequence[Hull], axis: AxisSamples, params: CheckParams) -> LumenProbes:
+    """Probes the centerline every ``probe_spacing`` radii: open where no hull comes within
+    ``clearance`` radii."""
     keep = axis.end_distance > params.end_margin * axis.radius
     # Axis samples are denser than the probe spacing; thin them by arc position in radii.
     bins = np.floor(axis.u / params.probe_spacing).astype(np.int64)
@@ -95,18 +120,78 @@ def lumen_probes(axis: AxisSamples, params: CheckParams) -> tuple[FloatArray, Fl
     chosen = np.zeros(len(axis.u), dtype=bool)
     chosen[first] = True
     chosen &= keep
-    return axis.points[chosen], axis.radius[chosen]
+    points, radii = axis.points[chosen], axis.radius[chosen]
+    clear = np.ones(len(points), dtype=bool)
+    if len(points):
+        bound = hull_distance_bound(hulls, points, reach=params.clearance * float(radii.max()))
+        clear = bound >= params.clearance * radii
+    return LumenProbes(points, radii, axis.branch[chosen], axis.end_distance[chosen], clear)
 
 
 def lumen_open_fraction(
     hulls: Sequence[Hull], axis: AxisSamples, params: CheckParams
 ) -> tuple[float, int]:
     """Returns the fraction of centerline probes with no hull within ``clearance`` R, and count."""
-    points, radii = lumen_probes(axis, params)
-    if len(points) == 0:
-        return 1.0, 0
-    bound = hull_distance_bound(hulls, points, reach=params.clearance * float(radii.max()))
-    return float(np.mean(bound >= params.clearance * radii)), len(points)
+    probes = lumen_probes(hulls, axis, params)
+    return probes.open_fraction, len(probes.open)
+
+
+@dataclass(frozen=True)
+class BlockedPlace:
+    """Where most of the lumen-open check's blocked probes lie: on one branch.
+
+    Attributes:
+        blocked: Blocked probes there.
+        total_blocked: Blocked probes in all.
+        point: A blocked probe in the middle of them (m).
+        radius: (smallest, largest) lumen radius of the blocked probes there (m).
+        from_end: Arc length from the farthest of them to the branch's vessel end (m; ``inf``
+            on a branch without one).
+        end: Where that vessel end is (m), if the branch has one.
+    """
+
+    blocked: int
+    total_blocked: int
+    point: FloatArray
+    radius: tuple[float, float]
+    from_end: float
+    end: FloatArray | None
+
+    def describe(self, scale: float, graph: CenterlineGraph) -> str:
+        """One phrase naming the place, positions in input units (``scale`` m per unit)."""
+        lo, hi = (round(r * 1e3, 2) for r in self.radius)
+        where = np.round(self.point / scale, 2).tolist()
+        of = f"{self.blocked} of the {self.total_blocked} blocked probes"
+        if self.end is None or not np.isfinite(self.from_end):
+            return (f"{of} lie on one branch near {where} (input units), lumen radius "
+                    f"{lo}-{hi} mm")
+        node = int(np.argmin(np.linalg.norm(graph.nodes - self.end, axis=1)))
+        label = next((k for k, v in graph.labels.items() if v == node), None)
+        end = np.round(self.end / scale, 2).tolist()
+        name = (f"the branch to {label} (its end at {end})" if label
+                else f"the branch ending at {end}")
+        return (f"{of} lie in the last {self.from_end * 1e3:.3g} mm of {name}, around {where} "
+                f"(input units), lumen radius {lo}-{hi} mm")
+
+
+def blocked_place(probes: LumenProbes, axis: AxisSamples) -> BlockedPlace | None:
+    """Returns the branch holding most blocked probes, or ``None`` if none is blocked."""
+    blocked = np.flatnonzero(~probes.open)
+    if not len(blocked):
+        return None
+    branches, counts = np.unique(probes.branch[blocked], return_counts=True)
+    branch = int(branches[np.argmax(counts)])
+    here = blocked[probes.branch[blocked] == branch]
+    samples = np.flatnonzero(axis.branch == branch)
+    ends = samples[axis.end_distance[samples] == 0.0]
+    return BlockedPlace(
+        blocked=len(here),
+        total_blocked=len(blocked),
+        point=probes.points[here[len(here) // 2]],
+        radius=(float(probes.radius[here].min()), float(probes.radius[here].max())),
+        from_end=float(probes.end_distance[here].max()),
+        end=axis.points[ends[0]] if len(ends) else None,
+    )
 
 
 def wall_probes(
@@ -233,7 +318,7 @@ def check_folder(vessel: Vessel, params: CheckParams | None = None) -> dict[str,
     walled = ~inlet_cap(lumen, vessel.inlet_position, vessel.inlet_direction, inlet.radius)
     thickness = float(vessel.manifest.build.get("wall", {}).get("thickness", 0.8e-3))
     axis = sample_axis(vessel.centerline)
-    lumen_open, _ = lumen_open_fraction(hulls, axis, params)
+    lumen_open = lumen_probes(hulls, axis, params).open_fraction
     vertices, normals = np.asarray(lumen.vertices), np.asarray(lumen.vertex_normals)
     probes = wall_probes(
         vertices,

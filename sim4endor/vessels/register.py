@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.axis import branch_chains
 from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.ends import end_runs, without_nodes
 
 logger = logging.getLogger(__name__)
 
@@ -229,40 +230,6 @@ def _place(
     return points, clear
 
 
-def _overhanging_ends(graph: CenterlineGraph, outside: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """Nodes on runs of ``outside`` nodes that start at a vessel end (not past a junction)."""
-    degree = graph.degrees()
-    trim = np.zeros(graph.num_nodes, dtype=bool)
-    for chain in branch_chains(graph):
-        if outside[chain].all():
-            continue  # nothing of this branch is in the lumen: an error, not a trim
-        for run in (chain, chain[::-1]):
-            if degree[run[0]] != 1:
-                continue
-            for node in run[:-1]:
-                if not outside[node]:
-                    break
-                trim[node] = True
-    return trim
-
-
-def _without(graph: CenterlineGraph, drop: NDArray[np.bool_]) -> CenterlineGraph:
-    keep = np.flatnonzero(~drop)
-    index = np.full(graph.num_nodes, -1, dtype=np.int64)
-    index[keep] = np.arange(len(keep))
-    edges = index[graph.edges]
-    labels = {k: int(index[v]) for k, v in graph.labels.items() if index[v] >= 0}
-    branch = None if graph.branch is None else graph.branch[keep]
-    return CenterlineGraph(
-        graph.nodes[keep],
-        graph.radii[keep],
-        edges[(edges >= 0).all(axis=1)],
-        labels,
-        branch,
-        graph.branch_names,
-    )
-
-
 def _smoothed(graph: CenterlineGraph, offsets: FloatArray, half_width: int) -> FloatArray:
     """Returns the offsets averaged over ``half_width`` nodes each side along every branch."""
     out = offsets.copy()
@@ -310,11 +277,11 @@ def register_centerline(
     given_outside = int(np.sum(given_clear < 0))
     given_close = int(np.sum((given_clear >= 0) & (given_clear < clearance * graph.radii)))
     points, point_clear = _place(lumen, graph, params)
-    trim = _overhanging_ends(graph, point_clear < params.end_clearance * graph.radii)
+    trim = end_runs(graph, point_clear < params.end_clearance * graph.radii)
     trimmed_length = float(graph.edge_lengths()[trim[graph.edges].any(axis=1)].sum())
     if trim.any():
         kept = ~trim
-        graph = _without(graph, trim)
+        graph = without_nodes(graph, trim)
         points, point_clear = points[kept], point_clear[kept]
     lost = np.flatnonzero(point_clear <= 0)
     if len(lost):  # not at a vessel end: look around in 3D before giving up

@@ -1,0 +1,122 @@
+"""Narrow vessel ends (issue 78, 7c): a refused build says where, such an end can be trimmed,
+and an opening closed as a hole is named."""
+
+from __future__ import annotations
+
+import logging
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from sim4endor.vessels.build import BuildError, BuildParams, build_vessel
+from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.ends import trim_narrow_ends
+from sim4endor.vessels.generators.tubes import TubeBranch, lumen_mesh, sweep_tube
+from sim4endor.vessels.walls import WallParams
+
+SERIAL = BuildParams(wall=WallParams(workers=1, use_coacd=False))
+
+
+@pytest.fixture(autouse=True)
+def _private_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+
+
+def _line(start: np.ndarray, direction: list[float], length: float, n: int) -> np.ndarray:
+    d = np.asarray(direction, dtype=np.float64)
+    return start + np.linspace(0.0, length, n)[:, None] * d / np.linalg.norm(d)
+
+
+def _y_graph() -> CenterlineGraph:
+    """A trunk (1.5 mm) with a branch narrowing to 0.2 mm and a branch of 0.25 mm throughout."""
+    trunk = _line(np.zeros(3), [0, 0, 1], 20e-3, 21)
+    wide = _line(trunk[-1], [1, 0, 1], 10e-3, 11)[1:]
+    thin = _line(trunk[-1], [-1, 0, 1], 8e-3, 9)[1:]
+    nodes = np.vstack([trunk, wide, thin])
+    radii = np.concatenate([np.full(21, 1.5e-3), np.linspace(1.0e-3, 0.2e-3, 10),
+                            np.full(8, 0.25e-3)])
+    edges = [(k, k + 1) for k in range(20)] + [(20, 21)] + [(k, k + 1) for k in range(21, 30)]
+    edges += [(20, 31)] + [(k, k + 1) for k in range(31, 38)]
+    return CenterlineGraph(nodes, radii, np.asarray(edges))
+
+
+def test_narrow_ends_are_cut_back_to_the_radius_and_a_narrow_branch_goes_whole() -> None:
+    graph = _y_graph()
+    trimmed, ends, index = trim_narrow_ends(graph, 0.5e-3, keep=[0])
+    # The wide branch keeps its nodes of 0.5 mm or more (21-26); the thin one goes whole, and
+    # the junction it hung from (20) stays.
+    assert np.all(index[27:] == -1) and np.all(index[:27] >= 0)
+    assert sorted(trimmed.terminal_nodes().tolist()) == sorted([index[0], index[26]])
+    thin, wide = sorted(ends, key=lambda e: e.radius)
+    assert thin.radius == pytest.approx(0.25e-3) and thin.length == pytest.approx(8e-3)
+    assert wide.radius == pytest.approx(graph.radii[27]) and wide.length == pytest.approx(4e-3)
+    # Nothing narrower than the limit: the graph comes back as it was.
+    same, none, identity = trim_narrow_ends(graph, 0.1e-3, keep=[0])
+    assert none == [] and same.num_nodes == graph.num_nodes
+    assert np.array_equal(identity, np.arange(graph.num_nodes))
+
+
+def _thin_ended_y() -> tuple[trimesh.Trimesh, np.ndarray]:
+    """A Y lumen (m) whose side branch narrows to 0.15 mm: faceted, its walls close it."""
+    trunk = _line(np.zeros(3), [0, 0, 1], 16e-3, 120)
+    wide = _line(trunk[-1], [0.5, 0, 1], 14e-3, 90)
+    thin = _line(trunk[-1], [-0.6, 0.2, 1], 12e-3, 90)
+    branches = [TubeBranch("trunk", trunk, np.full(len(trunk), 1.4e-3)),
+                TubeBranch("wide", wide, np.linspace(1.1e-3, 0.9e-3, len(wide)), parent=0),
+                TubeBranch("thin", thin, np.linspace(0.5e-3, 0.15e-3, len(thin)), parent=0)]
+    return lumen_mesh(branches, segments=24), trunk[0]
+
+
+def test_a_refused_build_names_the_branch_and_its_radius_and_the_end_can_be_trimmed(
+        tmp_path: Path) -> None:
+    lumen, inlet = _thin_ended_y()
+    with pytest.raises(BuildError) as refused:
+        build_vessel(lumen, name="y", out_dir=tmp_path / "y", units="m", params=SERIAL,
+                     progress=False, cache=False, inlet=inlet)
+    message = str(refused.value)
+    found = re.search(r"(\d+) of the (\d+) blocked probes lie in the last ([\d.]+) mm of the "
+                      r"branch to (T\d) \(its end at \[[^\]]+\]\), around \[[^\]]+\] \(input "
+                      r"units\), lumen radius ([\d.]+)-([\d.]+) mm", message)
+    assert found, message
+    assert int(found[1]) >= 0.8 * int(found[2])  # the thin end holds most of them
+    assert float(found[5]) < 0.5 and "--trim-ends-below" in message
+    assert not (tmp_path / "y").exists()
+    assert "fifth of the lumen radius" not in message  # the importer decimates to 0.3 radii
+
+    params = BuildParams(wall=SERIAL.wall, trim_ends_below=0.6e-3)
+    vessel = build_vessel(lumen, name="y", out_dir=tmp_path / "y", units="m", params=params,
+                          progress=False, cache=False, inlet=inlet)
+    assert vessel.manifest.checks["lumen_open"] >= 0.99
+    (cut,) = vessel.manifest.build["trimmed_ends"]
+    assert cut["largest_radius_mm"] < 0.6 and cut["length_mm"] > 5.0
+    assert float(vessel.centerline.radii.min()) >= 0.6e-3 - 1e-9 or len(vessel.targets) == 2
+    assert len(vessel.targets) == 2  # the trimmed end is no target
+
+
+def test_an_opening_closed_as_a_hole_is_named_with_its_radius(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """A vessel end that the centerline stops short of is closed as a hole in the wall; the
+    log names it (radius, position) and counts the filled holes as the manifest does. Before,
+    two log lines read 'filled 1 small hole(s)' and the manifest said 2."""
+    arc = np.linspace(0.0, np.radians(90.0), 50)
+    axis = np.column_stack([20e-3 * np.cos(arc), 20e-3 * np.sin(arc), np.zeros(len(arc))])
+    radii = np.linspace(1.5e-3, 0.35e-3, len(axis))  # an end narrower than a third of the mean
+    vertices, faces = sweep_tube(axis, radii, 24, flat_start=True)
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    cap = np.flatnonzero(np.linalg.norm(mesh.triangles_center - axis[-1], axis=1) < 0.4e-3)
+    mesh.update_faces(np.setdiff1d(np.arange(len(faces)), cap))  # the far end open
+    mesh.remove_unreferenced_vertices()
+    short = axis[:35]  # the centerline stops 7 mm short of the open end
+    graph = CenterlineGraph(short, radii[:35], np.column_stack([np.arange(34), np.arange(1, 35)]))
+    with caplog.at_level(logging.INFO, logger="sim4endor.vessels"):
+        vessel = build_vessel(mesh, name="short", out_dir=tmp_path / "short", units="m",
+                              centerline=graph, params=SERIAL, progress=False, cache=False,
+                              inlet=axis[0])
+    filled = vessel.manifest.build["repairs"]["filled_holes"]
+    messages = [r.getMessage() for r in caplog.records]
+    (line,) = [m for m in messages if "no centerline end reaches" in m]
+    assert re.search(r"0\.\d\d mm radius near \[", line), line
+    assert f"{filled} filled holes in all" in line and "--centerline" in line
