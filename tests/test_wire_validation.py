@@ -139,14 +139,18 @@ def test_a_raw_push_far_past_the_limit_stays_finite_and_in_the_lumen(name: str,
                                                                      force: float) -> None:
     result = push.push_test(vessels.load("simplified_phantom"), wires.preset(name), force)
     assert result.finite and not result.warnings and not result.left_lumen
-    # The wall holds a buckled wire with several times the push (measured 3.2 / 12.0 / 4.1 /
-    # 4.6 times at 2 N, paper / workhorse / intermediate / stiff; 5.1 / 9.2 / 7.2 / 7.1 at 5
-    # N), and no pinched segment carries kilonewtons (at the fast fidelity the paper wire
-    # went NaN at 5 N with 868 kN, the workhorse 441 N). The soft workhorse coiled at 2 N,
-    # 200 times its rated tip load, presses the dead end's walls with 24 N all along the
-    # coil: the one case above 10 times the push.
-    bound = 12.5 if (name, force) == ("workhorse", 2.0) else 10.0
-    assert result.max_wall_force <= bound * force
+    # The wall holds a buckled wire with several times the push, as helical-buckling theory
+    # says it must (sim4endor.benches.push): at its peak the mean wall force is 0.78 / 1.03 /
+    # 1.13 / 1.32 of Lubinski's at 2 N (workhorse / paper / intermediate / stiff; theory takes
+    # the shaft's rigidity, the stiffer wires' softer tapers press more) and 0.84 / 0.92 / 0.94
+    # at 5 N (the workhorse's coil takes the driver's travel before its push passes 3.0 N).
+    # The soft workhorse at 2 N, 200 times its rated tip load, presses with 24 N where theory
+    # asks 30 N. No pinched segment carries kilonewtons (at the fast fidelity the paper wire
+    # went NaN at 5 N with 868 kN, the workhorse 441 N): every physics step's force stays
+    # within 10 times the push, or within 1.3 times theory where theory asks more.
+    assert result.max_wall_force <= max(10.0 * force, 1.3 * result.helical_wall_force)
+    if result.max_push >= 0.99 * force:
+        assert 0.6 <= result.max_mean_wall_force / result.helical_wall_force <= 1.5
 
 
 def test_a_stronger_driver_ends_the_episode_with_push_force() -> None:

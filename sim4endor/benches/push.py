@@ -13,7 +13,17 @@ the servo saturates once its target leads the carriage by limit / stiffness). It
   the wire's scaled mass), whether any wire point (its axis) left the nominal lumen by more than
   ``escape_tolerance`` (:func:`sim4endor.benches.validation.escape_depth`; a non-finite state
   counts as having left, since MuJoCo resets it and the wire can no longer be located), and
-  whether the state became non-finite or MuJoCo warned.
+  whether the state became non-finite or MuJoCo warned;
+* the wall force helical-buckling theory gives at the control step where the mean wall force
+  peaked (:func:`helical_wall_force`).
+
+A wire pushed far past its tip load buckles into a helix along the tube, and the wall holds
+the helix: Lubinski's contact force per unit length is ``c F^2 / (4 E I)`` for an axial force
+``F``, a radial clearance ``c`` and a flexural rigidity ``E I`` (A. Lubinski, W. S. Althouse and
+J. L. Logan, "Helical buckling of tubing sealed in packers", J. Petroleum Technology 14(6):
+655-670, 1962; R. F. Mitchell, "New concepts for helical buckling", SPE Drilling Engineering
+3(3):303-310, 1988). Over the ~0.1 m of a soft wire in a 4 mm lumen that is many times the
+push itself: at 2 N the workhorse (shaft E I 8.1e-6 N m^2) must press the wall with ~30 N.
 """
 
 from __future__ import annotations
@@ -21,6 +31,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+import numpy as np
 from dm_control.rl import control
 
 from sim4endor.benches.validation import escape_depth
@@ -46,11 +57,26 @@ class PushResult:
     warnings: tuple[str, ...]
     sim_time: float
     stopped: bool = False
+    helical_wall_force: float = 0.0
 
     @property
     def penetration_over_radius(self) -> float:
         """Deepest hull penetration in wire radii."""
         return self.max_penetration / self.wire_radius
+
+
+def helical_wall_force(push: float, clearance: float, length: float, rigidity: float) -> float:
+    """The wall force (N) that holds a wire pushed with ``push`` (N) and helically buckled
+    over ``length`` (m) of a tube with radial ``clearance`` (m): the push, taken by the dead end,
+    plus Lubinski's ``clearance push^2 / (4 rigidity)`` per unit length (module docstring)."""
+    return push + clearance * push**2 * length / (4.0 * rigidity)
+
+
+def _length_in_lumen(physics: GuidewirePhysics, vessel: Vessel) -> float:
+    points = physics.wire_points()
+    inside = vessel.centerline.tube_excesses(points) < 0.0
+    segments = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    return float(segments[inside[1:] & inside[:-1]].sum())
 
 
 def push_physics(
@@ -85,7 +111,8 @@ def push_test(
     tolerance = wire.radius if escape_tolerance is None else escape_tolerance
     substeps = max(1, round(control_period / physics.model.opt.timestep))
     v_ins = physics.max_speeds()[0]
-    penetration = force = mean_force = escape = push = 0.0
+    penetration = force = mean_force = escape = push = helical = 0.0
+    clearance = float(np.median(vessel.centerline.radii)) - wire.radius
     finite, stopped, time = True, False, 0.0
     while physics.data.time < duration and not stopped:
         angle = physics.driver_targets()[1]
@@ -106,7 +133,11 @@ def push_test(
             total += physics.wall_contact_force()
             force = max(force, physics.wall_contact_force())
             time = float(physics.data.time)  # MuJoCo resets the time of a diverged state
-        mean_force = max(mean_force, total / substeps)
+        if total / substeps > mean_force:
+            mean_force = total / substeps
+            helical = helical_wall_force(physics.insertion_force(), clearance,
+                                         _length_in_lumen(physics, vessel),
+                                         wire.bending_stiffness)
         if not finite or not physics.is_finite():
             finite = False
             break
@@ -118,4 +149,5 @@ def push_test(
         max_wall_force=force, max_mean_wall_force=mean_force, max_push=push, max_escape=escape,
         left_lumen=escape > tolerance or not finite, finite=finite,
         warnings=tuple(physics.warnings()), sim_time=time, stopped=stopped,
+        helical_wall_force=helical,
     )
