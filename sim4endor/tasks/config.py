@@ -119,8 +119,8 @@ class InitialStateConfig:
     the tip position: the pre-bent tip sits off the vessel axis in its bend direction.
 
     With ``off_path_depth`` set (the ``*_redirect`` tasks) the episode starts where a wrong
-    turn left the wire: from that start, the scripted expert
-    (:class:`~sim4endor.tasks.expert.CenterlineExpert`) drives it towards another labelled
+    turn left the wire: from that start, the scripted expert's steering
+    (:class:`~sim4endor.tasks.steering.CenterlineSteering`) drives it towards another labelled
     target of the vessel, drawn per episode, until the tip lies a depth drawn uniformly from
     ``off_path_depth`` off the path to the task's target, i.e. that far down the branch where
     the two paths part; then the drawn roll is turned in at the carriage's top speed. Reaching
