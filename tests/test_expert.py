@@ -145,7 +145,7 @@ def test_a_stuck_probing_expert_follows_the_best_aim_of_its_probe() -> None:
     expert = ProbingExpert(probe=ProbeConfig(roll_offsets_deg=(0.0, 90.0), horizon=25,
                                              stall_steps=0, max_probes=1, pull_back=False))
     first = expert(env.physics, env.task)
-    assert expert._probes == 1
+    assert expert.probes == 1
     substeps = env.task.config.action.physics_steps(env.physics.timestep())
     plans = [lookahead(env.physics, env.task,
                         CenterlineExpert(dataclasses.replace(FIXED_AIM, roll_offset_deg=offset)),

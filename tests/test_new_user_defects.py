@@ -229,6 +229,17 @@ def test_trainings_final_evaluation_shows_its_progress(
     assert "evaluate: 100%" in err and f"{config.eval.trials}/{config.eval.trials}" in err
 
 
+def test_the_probing_experts_evaluation_shows_its_steps_and_probes(
+        tube: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # 526 s for 6 episodes on a real tree with a bar that moved once per target: the probes
+    # (look-ahead on copies of the physics) hold the episode for seconds at a time.
+    assert main(["evaluate", "probing-expert", "--vessel", str(tube)]) == 0
+    err = capsys.readouterr().err
+    assert "tube: 100%" in err and "A: 100%" in err  # the targets, the target's episodes
+    steps = [line for line in err.replace("\r", "\n").splitlines() if line.startswith("steps:")]
+    assert steps and "probes=0/12, to_target=" in steps[-1]  # and the episode's steps
+
+
 @pytest.mark.parametrize("baseline", ["insert", "random"])
 def test_the_open_loop_baselines_run_on_a_vessel_folder_like_the_expert(
         tube: Path, baseline: str, capsys: pytest.CaptureFixture[str]) -> None:

@@ -124,6 +124,13 @@ class _BaselinePolicy(TensorDictModuleBase):
         tensordict["action"] = action.to(torch.float32)
         return tensordict
 
+    def progress_postfix(self) -> dict[str, str]:
+        """The probing expert's probes this episode (``probes=2/12``), for the step bar of
+        :func:`sim4endor.rl.evaluation.rollouts`; nothing for the other baselines."""
+        if not isinstance(self._expert, ProbingExpert):
+            return {}
+        return {"probes": f"{self._expert.probes}/{self._expert.probe.max_probes}"}
+
 
 def policy(baseline: Baseline, env: EnvBase) -> TensorDictModuleBase:
     """The acting module of ``baseline`` in ``env`` (a sim4endor TorchRL environment), for

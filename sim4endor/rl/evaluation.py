@@ -14,7 +14,8 @@ control task used in tests) gives neutral values: no success, zero force, zero p
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import torch
@@ -28,6 +29,16 @@ from sim4endor.tasks import FAILURES
 
 #: Control period of the sim4endor tasks with their default action settings (20 Hz).
 DEFAULT_CONTROL_TIMESTEP_S = 0.05
+
+
+@runtime_checkable
+class ReportsProgress(Protocol):
+    """A policy with something to say on the step bar of :func:`rollouts`: the probing expert's
+    look-ahead can hold one step for seconds, so it names the probes it made."""
+
+    def progress_postfix(self) -> Mapping[str, object]:
+        """What the step bar shows beside its count, e.g. ``{"probes": "2/12"}``."""
+        ...
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,18 +77,20 @@ def rollout_episodes(
     seed: int,
     keys: EpisodeKeys = EpisodeKeys(),
     progress: bool = False,
+    desc: str = "evaluate",
+    leave: bool = True,
 ) -> list[Episode]:
     """Runs ``trials`` deterministic episodes of ``policy`` (its mode, no exploration noise).
 
     The env is reseeded with ``seed`` first, so two calls see the same start states.
-    ``progress`` shows a bar counting episodes and successes.
+    ``progress`` shows the bars of :func:`rollouts`.
     """
     env.set_seed(seed)
     with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
         return [
             episode_from_rollout(rollout, keys)
             for rollout in rollouts(env, policy, trials=trials, max_steps=max_steps, keys=keys,
-                                    progress=progress)
+                                    progress=progress, desc=desc, leave=leave)
         ]
 
 
@@ -90,14 +103,31 @@ def rollouts(
     keys: EpisodeKeys = EpisodeKeys(),
     progress: bool = False,
     desc: str = "evaluate",
+    leave: bool = True,
 ) -> Iterator[TensorDictBase]:
     """Yields ``trials`` episodes of ``policy`` in ``env``, each a rollout with time along dim
-    0, as it goes (``max_steps`` at most each); ``progress`` shows a bar counting episodes and
-    successes. The caller sets the exploration type and gradient mode."""
+    0, as it goes (``max_steps`` at most each). ``progress`` shows a bar counting episodes and
+    successes (``leave``: kept when done) and under it one counting the episode's steps, with
+    the distance to the target and what a :class:`ReportsProgress` policy says: an episode
+    can take minutes. The caller sets the exploration type and gradient mode."""
     successes = 0
-    with tqdm(total=trials, unit="episodes", desc=desc, disable=not progress) as bar:
+    with (tqdm(total=trials, unit="episodes", desc=desc, disable=not progress,
+               leave=leave) as bar,
+          tqdm(total=max_steps, unit="steps", desc="steps", disable=not progress,
+               leave=False) as steps):
+        says = policy.progress_postfix if isinstance(policy, ReportsProgress) else dict
+
+        def count_step(_env: EnvBase, tensordict: TensorDictBase) -> None:
+            postfix = dict(says())
+            if keys.distance in tensordict.keys():
+                postfix["to_target"] = f"{1e3 * float(tensordict[keys.distance]):.1f} mm"
+            steps.update()
+            steps.set_postfix(postfix, refresh=False)
+
         for _ in range(trials):
-            rollout = env.rollout(max_steps, policy, break_when_any_done=True)
+            steps.reset()
+            rollout = env.rollout(max_steps, policy, callback=count_step if progress else None,
+                                  break_when_any_done=True)
             successes += reached(rollout, keys)
             bar.update()
             bar.set_postfix(success=f"{successes}/{bar.n}")

@@ -197,13 +197,16 @@ class CaseEnvironments:
 def run_cases(cases: Sequence[Case], make_actor: ActorFactory, config: SuiteConfig,
               envs: CaseEnvironments, label: str = "", progress: bool = False
               ) -> dict[str, list[Episode]]:
-    """Runs ``config.trials`` episodes of each case; returns the episodes per case label."""
+    """Runs ``config.trials`` episodes of each case; returns the episodes per case label.
+    ``progress`` shows a bar counting cases and, under it while a case runs, the bars of
+    :func:`~sim4endor.rl.evaluation.rollouts` (its episodes, and the steps of the one under
+    way)."""
     episodes: dict[str, list[Episode]] = {}
     for case in tqdm(cases, desc=label or "suite", unit="case", disable=not progress):
         env = envs[case]
         episodes[case.label] = rollout_episodes(
             env, make_actor(env), trials=config.trials, max_steps=config.max_steps,
-            seed=config.seed)
+            seed=config.seed, progress=progress, desc=case.label, leave=False)
     return episodes
 
 
