@@ -81,6 +81,26 @@ def test_degenerate_faces_are_removed() -> None:
     assert prepared.mesh.is_watertight
 
 
+def test_a_closed_lumens_slivers_are_collapsed_not_cut_out() -> None:
+    """Marching cubes leaves zero-area slivers where the surface passes a voxel corner.
+    Deleting them opened a closed lumen (a 136,178-face tree: 64 boundary edges, then "non-
+    manifold boundary"); in a closed mesh they are collapsed, and it stays closed."""
+    from sim4endor.vessels.generators.implicit_coronary import (
+        ImplicitCoronaryConfig,
+        implicit_coronary,
+    )
+    from sim4endor.vessels.meshio import degenerate_faces
+
+    lumen = implicit_coronary(ImplicitCoronaryConfig(voxel=0.3), 0).lumen
+    assert lumen.is_watertight and degenerate_faces(lumen).any()
+    cut = lumen.copy()
+    cut.update_faces(~degenerate_faces(cut))
+    assert not cut.is_watertight  # what deleting them did
+    prepared = prepare_lumen(lumen, units="m")
+    assert prepared.report.removed_faces >= 1 and prepared.report.filled_holes == 0
+    assert prepared.mesh.is_watertight and not degenerate_faces(prepared.mesh).any()
+
+
 def test_small_hole_is_filled_large_hole_is_an_error() -> None:
     mesh = tube()
     side = np.flatnonzero(np.abs(mesh.face_normals[:, 2]) < 0.1)

@@ -29,6 +29,8 @@ from typing import Literal
 import numpy as np
 import trimesh
 from numpy.typing import NDArray
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.remesh import RemeshParams, decimate, faces_for
@@ -143,7 +145,16 @@ def merge_close_vertices(mesh: trimesh.Trimesh) -> None:
     in metres, as :func:`prepare_lumen` has it), the same points merge in any unit; for a
     lumen of sub-millimetre edges in metres the grid is trimesh's own, so the shipped phantoms
     rebuild bit for bit.
+
+    Only a mesh that is not closed after merging its identical vertices is merged on the grid:
+    a closed marching-cubes lumen has distinct vertices closer than that where the surface
+    passes a voxel corner, and merging them pinched its edges (6 non-manifold edges, then 60
+    boundary edges once the collapsed faces went, on a 136,178-face tree: "non-manifold
+    boundary", issue 78).
     """
+    _merge_identical_vertices(mesh)
+    if mesh.is_watertight:
+        return
     edges = mesh.edges_unique_length
     edges = edges[edges > 0]
     if not edges.size:
@@ -152,11 +163,66 @@ def merge_close_vertices(mesh: trimesh.Trimesh) -> None:
     mesh.merge_vertices(merge_tex=True, merge_norm=True, digits_vertex=digits)
 
 
+def _merge_identical_vertices(mesh: trimesh.Trimesh) -> None:
+    """Merges (in place) vertices with bit-identical coordinates, as a triangle soup has."""
+    unique, inverse = np.unique(np.asarray(mesh.vertices), axis=0, return_inverse=True)
+    if len(unique) < len(mesh.vertices):
+        faces = inverse.reshape(-1)[np.asarray(mesh.faces)]
+        mesh.vertices = unique
+        mesh.faces = faces
+
+
 def degenerate_faces(mesh: trimesh.Trimesh) -> NDArray[np.bool_]:
     """Mask of the faces the importer removes: zero height or area relative to the mesh size."""
     scale = float(mesh.scale)
     return ~(mesh.nondegenerate_faces(height=1e-10 * scale)
              & (mesh.area_faces > 1e-12 * scale**2))
+
+
+def without_degenerate_faces(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """``mesh`` less its :func:`degenerate_faces`, closed if it was closed.
+
+    Marching cubes leaves zero-area slivers where the surface passes a voxel corner; deleting
+    them opened a closed 136,178-face lumen with 64 boundary edges and pinched vertices that
+    the build then refused as a "non-manifold boundary" (issue 78). In a closed mesh each
+    sliver's shortest edge is collapsed instead, which takes the sliver and its neighbour
+    across that edge; should that not leave the mesh closed, the slivers are deleted as in an
+    open one.
+    """
+    if mesh.is_watertight:
+        collapsed = _collapse_degenerate_faces(mesh)
+        if collapsed.is_watertight:
+            return collapsed
+    out = mesh.copy()
+    out.update_faces(~degenerate_faces(out))
+    return out
+
+
+def _collapse_degenerate_faces(mesh: trimesh.Trimesh, rounds: int = 5) -> trimesh.Trimesh:
+    vertices, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    for _ in range(rounds):
+        current = trimesh.Trimesh(vertices, faces, process=False)
+        bad = np.flatnonzero(degenerate_faces(current))
+        if not len(bad):
+            break
+        corners = faces[bad]
+        edges = np.stack([corners[:, [0, 1]], corners[:, [1, 2]], corners[:, [2, 0]]], axis=1)
+        lengths = np.linalg.norm(vertices[edges[..., 0]] - vertices[edges[..., 1]], axis=2)
+        shortest = edges[np.arange(len(bad)), lengths.argmin(axis=1)]
+        # Every vertex joined by collapsed edges becomes the first of its group.
+        joined = coo_matrix((np.ones(len(shortest)), (shortest[:, 0], shortest[:, 1])),
+                            shape=(len(vertices), len(vertices)))
+        _, group = connected_components(joined, directed=False)
+        first = np.full(group.max() + 1, len(vertices))
+        np.minimum.at(first, group, np.arange(len(vertices)))
+        target = first[group]
+        faces = target[faces]
+        faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2])
+                      & (faces[:, 2] != faces[:, 0])]
+    out = trimesh.Trimesh(vertices, faces, process=False)
+    out.update_faces(out.unique_faces())
+    out.remove_unreferenced_vertices()
+    return out
 
 
 def boundary_loops(mesh: trimesh.Trimesh) -> list[NDArray[np.int64]]:
@@ -362,7 +428,7 @@ def prepare_lumen(
     merge_close_vertices(work)
     merged = n_vertices - len(work.vertices)
     n_faces = len(work.faces)
-    work.update_faces(~degenerate_faces(work))
+    work = without_degenerate_faces(work)
     work.update_faces(work.unique_faces())
     work.remove_unreferenced_vertices()
     removed = n_faces - len(work.faces)
