@@ -7,6 +7,7 @@ import math
 import mujoco
 import numpy as np
 import pytest
+from dm_control import mujoco as dm_mujoco
 from guidewire_helpers import write_tube_vessel
 
 from sim4endor.benches import validation
@@ -142,6 +143,30 @@ def test_same_commands_give_identical_trajectories(tube: Vessel) -> None:
             physics.step(10)
         runs.append(physics.data.qpos.copy())
     np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_a_copy_sharing_the_model_is_dm_controls_copy_without_its_indexing_cost(
+        tube: Vessel) -> None:
+    """The probing expert's look-ahead copies the physics every control step; the copy that
+    reuses the model's named indexing starts in the state dm_control's own copy starts in and
+    steps to the same states, bit for bit, while the original stays as it was."""
+    physics = GuidewirePhysics.from_vessel(tube)
+    _drive(physics, 0.07, 0.3, 1.0)  # the tip pressed on the cap: contacts, warm start
+    before = physics.data.qpos.copy()
+    ours, theirs = physics.copy(share_model=True), dm_mujoco.Physics.copy(physics, True)
+    assert ours.model.ptr is physics.model.ptr and ours.data.ptr is not physics.data.ptr
+    for field in ("qpos", "qvel", "qacc_warmstart", "xpos", "sensordata", "efc_force"):
+        np.testing.assert_array_equal(getattr(ours.data, field), getattr(theirs.data, field))
+    np.testing.assert_array_equal(ours.named.data.qpos, theirs.named.data.qpos)
+    assert ours.max_speeds() == theirs.max_speeds()
+    for k in range(20):
+        for sim in (ours, theirs):
+            sim.apply_increments(-0.002, 0.1 * math.sin(k), 0.05)
+            sim.step(10)
+        assert ours.mean_tip_contact_force() == theirs.mean_tip_contact_force()
+    np.testing.assert_array_equal(ours.data.qpos, theirs.data.qpos)
+    np.testing.assert_array_equal(ours.wire_points(), theirs.wire_points())
+    np.testing.assert_array_equal(physics.data.qpos, before)
 
 
 def test_vectorised_wall_forces_match_mujoco_contact_force(tube: Vessel) -> None:
