@@ -18,7 +18,7 @@ from sim4endor.vessels.generators.implicit_coronary import (
 )
 
 CONFIG = ImplicitCoronaryConfig(voxel=0.3)  # the default 0.15 mm costs 4-8 times more
-SEEDS = (0, 2)
+SEEDS = (1, 2)
 
 
 @pytest.fixture(scope="module")
@@ -48,6 +48,19 @@ def test_the_lumen_is_one_closed_outward_surface_of_adult_coronary_calibre(
     ends = np.array([points[-1] for points, _ in tree.axes])
     for point in tree.targets.values():
         assert np.linalg.norm(ends - point, axis=1).min() < 1e-9
+
+
+def test_every_branch_is_in_the_surface_along_its_whole_axis(
+        trees: dict[int, ImplicitTree]) -> None:
+    """The inlet's flat cut is local: a half-space cut through the whole grid took 10-26 mm
+    off branches curving back behind the inlet's plane."""
+    from scipy.spatial import cKDTree
+
+    for tree in trees.values():
+        surface = cKDTree(tree.lumen.vertices)
+        for points, radii in tree.axes:
+            distance, _ = surface.query(points[::10])
+            assert np.all(distance <= radii[::10] + 2 * CONFIG.voxel * 1e-3)
 
 
 def test_no_branch_comes_near_another_away_from_its_junction(

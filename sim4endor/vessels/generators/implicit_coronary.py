@@ -266,7 +266,10 @@ def _lumen(branches: list[_Branch], inlet_direction: FloatArray, voxel: float
     gx, gy, gz = np.meshgrid(*grid, indexing="ij", sparse=True)
     behind = -((gx - inlet[0]) * inlet_direction[0] + (gy - inlet[1]) * inlet_direction[1]
                + (gz - inlet[2]) * inlet_direction[2])
-    field = np.maximum(field, behind.astype(np.float32))
+    # Only around the ostium: a branch curving back behind the inlet's plane stays whole.
+    near = ((gx - inlet[0]) ** 2 + (gy - inlet[1]) ** 2 + (gz - inlet[2]) ** 2
+            < (2.5 * branches[0].radii[0]) ** 2)
+    field = np.where(near, np.maximum(field, behind.astype(np.float32)), field)
     vertices, faces, _, _ = marching_cubes(field, level=0.0, spacing=(voxel,) * 3)
     mesh = trimesh.Trimesh(vertices + lo, faces)
     if mesh.volume < 0:  # marching cubes winds its faces by the field's sign convention
