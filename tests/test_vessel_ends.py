@@ -120,3 +120,23 @@ def test_an_opening_closed_as_a_hole_is_named_with_its_radius(
     (line,) = [m for m in messages if "no centerline end reaches" in m]
     assert re.search(r"0\.\d\d mm radius near \[", line), line
     assert f"{filled} filled holes in all" in line and "--centerline" in line
+
+
+def test_a_given_inlet_on_a_stump_shorter_than_the_skeleton_sees_is_grafted_on(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """A tree cut 2.7 mm before its first bifurcation (as a left coronary tree cut from the
+    aorta is): the extracted skeleton has no end there, and the given inlet was refused as
+    lying 26 mm outside the lumen. The centerline is now extended to it."""
+    trunk = _line(np.zeros(3), [0, 0, 1], 2.7e-3, 40)
+    left = _line(trunk[-1], [0.7, 0, 1], 25e-3, 150)
+    right = _line(trunk[-1], [-0.7, 0.2, 1], 25e-3, 150)
+    lumen = lumen_mesh([TubeBranch("trunk", trunk, np.full(len(trunk), 2.0e-3)),
+                        TubeBranch("left", left, np.linspace(1.6e-3, 1.4e-3, 150), parent=0),
+                        TubeBranch("right", right, np.linspace(1.5e-3, 1.2e-3, 150), parent=0)],
+                       segments=32)
+    with caplog.at_level(logging.INFO, logger="sim4endor.vessels"):
+        vessel = build_vessel(lumen, name="stump", out_dir=tmp_path / "stump", units="m",
+                              inlet=trunk[0], params=SERIAL, progress=False, cache=False)
+    np.testing.assert_allclose(vessel.inlet_position, trunk[0], atol=1e-9)
+    assert vessel.manifest.checks["lumen_open"] >= 0.99 and len(vessel.targets) == 2
+    assert any("extended the centerline" in r.getMessage() for r in caplog.records)

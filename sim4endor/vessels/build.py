@@ -47,7 +47,7 @@ from sim4endor.vessels.checks import (
     wall_closed_fraction,
     wall_probes,
 )
-from sim4endor.vessels.ends import trim_narrow_ends
+from sim4endor.vessels.ends import graft_to, trim_narrow_ends
 from sim4endor.vessels.manifest import MANIFEST_FILE, Inlet, Manifest, below_acceptance
 from sim4endor.vessels.meshio import (
     UNIT_SCALE,
@@ -245,6 +245,24 @@ def _where_blocked(probes: LumenProbes, axis: AxisSamples, graph: CenterlineGrap
 #: refuses it: further than that it was given in another frame (LPS against RAS), in other
 #: units, or for another mesh, and snapping it to the nearest node would hide that.
 MAX_POINT_OUTSIDE_RADII = 2.0
+
+
+def _grafted(graph: CenterlineGraph, inlet: np.ndarray | None,
+             targets: Mapping[str, np.ndarray] | None, lumen: trimesh.Trimesh, scale: float,
+             name: str) -> CenterlineGraph:
+    """The centerline extended to each given point (input units) that none of its vessel ends
+    reaches but that lies in the vessel around it (:func:`.ends.graft_to`)."""
+    points = {"inlet": inlet, **(dict(targets) if targets is not None else {})}
+    for what, point in points.items():
+        if point is None:
+            continue
+        graph, length = graft_to(graph, np.asarray(point, dtype=np.float64) * scale,
+                                 MAX_POINT_OUTSIDE_RADII, lumen)
+        if length:
+            logger.info("%s: extended the centerline %.3g mm to the given %s at %s (input "
+                        "units): no vessel end of it was there", name, length * 1e3, what,
+                        np.round(np.asarray(point, dtype=np.float64), 3).tolist())
+    return graph
 
 
 def _check_near(graph: CenterlineGraph, node: int, point: np.ndarray, what: str, scale: float,
@@ -518,6 +536,7 @@ def build_vessel(
         centerline = extract_centerline(
             capped(prepared), params.skeleton, radius_hint=prepared.radius_estimate
         )
+    centerline = _grafted(centerline, inlet, targets, capped(prepared), scale, name)
     prepared = _close_wall_holes(prepared, centerline, source or name,
                                  params.max_hole_perimeter)
     inlet_node, inlet_choice = _choose_inlet(
