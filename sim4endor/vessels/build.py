@@ -505,9 +505,10 @@ def build_vessel(
     cached = cache_root() / key
     if cache and (cached / MANIFEST_FILE).is_file():
         logger.info("%s: unchanged inputs, using the cached build %s", name, key[:12])
-        failed = Manifest.load(cached).below_acceptance
+        stored = Manifest.load(cached)
+        failed = stored.below_acceptance
         if failed and not allow_below_acceptance:
-            where = Manifest.load(cached).build.get("below_acceptance", failed)
+            where = stored.build.get("below_acceptance", failed)
             raise BuildError(
                 f"{name}: {where} (a cached build of the same inputs); nothing was written. "
                 f"{_REMEDY}")
@@ -528,15 +529,16 @@ def build_vessel(
     )
     scale = UNIT_SCALE[units]
     given_centerline, registration_report = centerline, None
+    closed = capped(prepared)
     if centerline is not None and registration is not None:
         centerline, registration_report = register_centerline(
-            centerline, capped(prepared), registration, params.checks.clearance
+            centerline, closed, registration, params.checks.clearance
         )
     if centerline is None:
         centerline = extract_centerline(
-            capped(prepared), params.skeleton, radius_hint=prepared.radius_estimate
+            closed, params.skeleton, radius_hint=prepared.radius_estimate
         )
-    centerline = _grafted(centerline, inlet, targets, capped(prepared), scale, name)
+    centerline = _grafted(centerline, inlet, targets, closed, scale, name)
     prepared = _close_wall_holes(prepared, centerline, source or name,
                                  params.max_hole_perimeter)
     inlet_node, inlet_choice = _choose_inlet(

@@ -128,14 +128,6 @@ def lumen_probes(hulls: Sequence[Hull], axis: AxisSamples, params: CheckParams) 
     return LumenProbes(points, radii, axis.branch[chosen], axis.end_distance[chosen], clear)
 
 
-def lumen_open_fraction(
-    hulls: Sequence[Hull], axis: AxisSamples, params: CheckParams
-) -> tuple[float, int]:
-    """Returns the fraction of centerline probes with no hull within ``clearance`` R, and count."""
-    probes = lumen_probes(hulls, axis, params)
-    return probes.open_fraction, len(probes.open)
-
-
 @dataclass(frozen=True)
 class BlockedPlace:
     """Where most of the lumen-open check's blocked probes lie: on one branch.

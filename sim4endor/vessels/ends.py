@@ -64,8 +64,7 @@ def end_runs(graph: CenterlineGraph, flagged: BoolArray, whole_chains: bool = Fa
 def without_nodes(graph: CenterlineGraph, drop: BoolArray) -> CenterlineGraph:
     """Returns ``graph`` less the ``drop`` nodes and their edges (labels of dropped nodes go)."""
     keep = np.flatnonzero(~drop)
-    index = np.full(graph.num_nodes, -1, dtype=np.int64)
-    index[keep] = np.arange(len(keep))
+    index = _inverse(keep, graph.num_nodes)
     edges = index[graph.edges]
     labels = {k: int(index[v]) for k, v in graph.labels.items() if index[v] >= 0}
     branch = None if graph.branch is None else graph.branch[keep]

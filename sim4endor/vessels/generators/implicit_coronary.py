@@ -113,6 +113,22 @@ class _Branch:
     radii: FloatArray  # (N,) mm
 
 
+def _surface_normal(points: FloatArray, axes: FloatArray) -> FloatArray:
+    """Unit outward normals of the ellipsoid of semi-axes ``axes`` at ``points`` on it."""
+    normal = points / axes**2
+    if normal.ndim == 1:  # np.linalg.norm rounds a lone vector otherwise than a row of many
+        return np.asarray(normal / np.linalg.norm(normal))
+    return np.asarray(normal / np.linalg.norm(normal, axis=1, keepdims=True))
+
+
+def _take_off(point: FloatArray, tangent: FloatArray, axes: FloatArray, angle: float
+              ) -> FloatArray:
+    """The direction ``angle`` (rad) off ``tangent`` in the heart's tangent plane at ``point``."""
+    length = np.linalg.norm(tangent)
+    side = np.cross(_surface_normal(point, axes), tangent / length)
+    return np.asarray(np.cos(angle) * tangent / length + np.sin(angle) * side)
+
+
 def _surface_walk(rng: np.random.Generator, axes: FloatArray, start: FloatArray,
                   heading: FloatArray, length: float, noise: float, wavelength: float,
                   step: float = 0.1) -> FloatArray:
@@ -122,8 +138,7 @@ def _surface_walk(rng: np.random.Generator, axes: FloatArray, start: FloatArray,
     points = np.empty((count, 3))
     point, rate = start.copy(), 0.0
     for k in range(count):
-        normal = point / axes**2
-        normal /= np.linalg.norm(normal)
+        normal = _surface_normal(point, axes)
         heading = heading - (heading @ normal) * normal
         heading /= np.linalg.norm(heading)
         rate += -rate * step / wavelength + noise * np.sqrt(step) * rng.standard_normal()
@@ -140,8 +155,7 @@ def _wiggled(rng: np.random.Generator, points: FloatArray, axes: FloatArray,
              amplitude: float, wavelengths: tuple[float, float]) -> FloatArray:
     """Moves the walk along the surface normal by a sum of three short sinusoids."""
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-    normal = points / axes**2
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    normal = _surface_normal(points, axes)
     offset = sum(amplitude / 3 * np.sin(2 * np.pi * arc / rng.uniform(*wavelengths)
                                         + rng.uniform(0, 2 * np.pi)) for _ in range(3))
     ramp = np.minimum(1.0, arc / 3.0)  # the ostium stays put
@@ -201,11 +215,8 @@ def _draw(config: ImplicitCoronaryConfig, seed: int) -> tuple[list[_Branch], Flo
         if child * config.taper < config.min_radius:
             continue
         tangent = trunk[min(position + 1, len(trunk) - 1)] - trunk[max(position - 1, 0)]
-        normal = trunk[position] / axes**2
-        normal /= np.linalg.norm(normal)
-        side = np.cross(normal, tangent / np.linalg.norm(tangent))
         angle = np.radians(rng.uniform(*config.take_off)) * rng.choice([-1.0, 1.0])
-        direction = np.cos(angle) * tangent / np.linalg.norm(tangent) + np.sin(angle) * side
+        direction = _take_off(trunk[position], tangent, axes, angle)
         path = walk(trunk[position], direction, rng.uniform(*config.side_length), child,
                     [_Branch(trunk, trunk_r), *branches])
         if path is not None:  # the trunk carries on narrower past a branch it gave off
@@ -221,16 +232,11 @@ def _draw(config: ImplicitCoronaryConfig, seed: int) -> tuple[list[_Branch], Flo
         trunk_r *= 1 - rng.uniform(*loss) * 0.5 * (1 - np.cos(np.pi * dip))
     if rng.uniform() < config.trifurcation:
         end, tangent = trunk[-1], trunk[-1] - trunk[-2]
-        normal = end / axes**2
-        normal /= np.linalg.norm(normal)
-        side = np.cross(normal, tangent / np.linalg.norm(tangent))
         for sign in (-1.0, 1.0):
             child = trunk_r[-1] * rng.uniform(*config.asymmetry)
             if child * config.taper < config.min_radius:
                 continue
-            angle = sign * np.radians(rng.uniform(30, 60))
-            direction = (np.cos(angle) * tangent / np.linalg.norm(tangent)
-                         + np.sin(angle) * side)
+            direction = _take_off(end, tangent, axes, sign * np.radians(rng.uniform(30, 60)))
             path = walk(end, direction, rng.uniform(*config.side_length), child,
                         [_Branch(trunk, trunk_r), *branches])
             if path is not None:
