@@ -140,3 +140,57 @@ def test_a_given_inlet_on_a_stump_shorter_than_the_skeleton_sees_is_grafted_on(
     np.testing.assert_allclose(vessel.inlet_position, trunk[0], atol=1e-9)
     assert vessel.manifest.checks["lumen_open"] >= 0.99 and len(vessel.targets) == 2
     assert any("extended the centerline" in r.getMessage() for r in caplog.records)
+
+
+def _opened(mesh: trimesh.Trimesh, centre: np.ndarray, outward: np.ndarray,
+            radius: float) -> trimesh.Trimesh:
+    """``mesh`` with its end cap at ``centre`` cut away: an open vessel end."""
+    offset = mesh.triangles_center - centre
+    cap = (offset @ (outward / np.linalg.norm(outward)) > -0.01 * radius) & (
+        np.linalg.norm(offset, axis=1) < 1.5 * radius)
+    out = trimesh.Trimesh(mesh.vertices, mesh.faces[~cap])
+    out.remove_unreferenced_vertices()
+    return out
+
+
+def _stump_branches(trunk: np.ndarray) -> list[TubeBranch]:
+    left = _line(trunk[-1], [0.7, 0, 1], 25e-3, 150)
+    right = _line(trunk[-1], [-0.7, 0.2, 1], 25e-3, 150)
+    return [TubeBranch("trunk", trunk, np.full(len(trunk), 2.0e-3)),
+            TubeBranch("left", left, np.linspace(1.6e-3, 1.4e-3, 150), parent=0),
+            TubeBranch("right", right, np.linspace(1.5e-3, 1.2e-3, 150), parent=0)]
+
+
+def test_open_vessel_ends_the_skeleton_leaves_out_stay_open_ends(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """Open vessel ends that the extracted skeleton stops short of become vessel ends of the
+    centerline instead of holes closed in the wall (issue 78, 7c). Before, the open inlet of a
+    tree cut 2.7 mm before its bifurcation was refused as a 12.5 mm hole in the wall, and a
+    0.6 mm side branch 3.5 mm long, open at its end, was closed as a hole and was no target."""
+    trunk = _line(np.zeros(3), [0, 0, 1], 2.7e-3, 40)
+    stump = _opened(lumen_mesh(_stump_branches(trunk), segments=32), trunk[0],
+                    np.array([0.0, 0.0, -1.0]), 2.0e-3)
+    with caplog.at_level(logging.INFO, logger="sim4endor.vessels"):
+        vessel = build_vessel(stump, name="stump", out_dir=tmp_path / "stump", units="m",
+                              params=SERIAL, progress=False, cache=False)
+    np.testing.assert_allclose(vessel.inlet_position, trunk[0], atol=1e-9)
+    assert vessel.manifest.build["repairs"]["filled_holes"] == 0
+    assert vessel.manifest.checks["lumen_open"] >= 0.99 and len(vessel.targets) == 2
+    assert any("to the open vessel end of 2.00 mm radius" in r.getMessage()
+               for r in caplog.records)
+
+    trunk = _line(np.zeros(3), [0, 0, 1], 20e-3, 40)
+    side = _line(trunk[20], [1, 0.3, 0.2], 5.5e-3, 40)
+    branches = [*_stump_branches(trunk), TubeBranch("side", side, np.full(40, 0.6e-3), parent=0)]
+    mesh = _opened(lumen_mesh(branches, segments=32), trunk[0], np.array([0.0, 0.0, -1.0]),
+                   2.0e-3)
+    mesh = _opened(mesh, side[-1], side[-1] - side[-2], 0.6e-3)
+    vessel = build_vessel(mesh, name="side", out_dir=tmp_path / "side", units="m",
+                          params=SERIAL, progress=False, cache=False)
+    assert vessel.manifest.build["repairs"]["filled_holes"] == 0
+    assert vessel.manifest.checks["lumen_open"] >= 0.99 and len(vessel.targets) == 3
+    graph = vessel.centerline
+    end = int(np.argmin(np.linalg.norm(graph.nodes - side[-1], axis=1)))
+    np.testing.assert_allclose(graph.nodes[end], side[-1], atol=0.1e-3)
+    # The graft's radius is its distance from the wall, the side branch's own at its end.
+    assert graph.radii[end] == pytest.approx(0.6e-3, rel=0.1)

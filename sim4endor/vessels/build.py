@@ -7,8 +7,8 @@ atomically (:mod:`.mjcf_writer`). Results are cached by content hash, so an unch
 only copies the cached folder.
 
 Inlet: the given point, snapped to the nearest vessel end of the centerline graph; without one,
-the end of the widest terminal branch (largest mean radius over its first three radii of
-length). The inlet direction points from that end into the vessel along the graph.
+the end of the widest terminal branch (largest median radius). The inlet direction points
+from that end into the vessel along the graph.
 Targets: the given points (snapped to their nearest graph node for the labels); without them,
 every other vessel end, named ``T1``, ``T2``... by increasing path length from the inlet.
 """
@@ -215,12 +215,13 @@ def _close_wall_holes(
         # Named one by one: a thin vessel end that the extracted centerline stops short of
         # looks the same here, and a user must be able to tell which openings were closed.
         where = "; ".join(
-            f"{o.perimeter / (2 * np.pi) * 1e3:.2f} mm radius near "
+            f"{o.radius * 1e3:.2f} mm radius near "
             f"{np.round(o.centre / prepared.scale, 2).tolist()}" for o in stray)
         logger.warning(
             "%s: closed %d opening(s) that no centerline end reaches as holes in the wall: %s "
             "(the manifest counts %d filled holes in all). If one is a vessel end, the "
-            "centerline stops short of it: pass one that reaches it with --centerline.",
+            "centerline stops short of it, beyond a straight run's reach: pass one that "
+            "reaches it with --centerline.",
             source, len(stray), where, closed.report.filled_holes)
         return closed
     return prepared
@@ -265,6 +266,24 @@ def _grafted(graph: CenterlineGraph, inlet: np.ndarray | None,
     return graph
 
 
+def _grafted_to_openings(graph: CenterlineGraph, prepared: PreparedLumen,
+                         lumen: trimesh.Trimesh, name: str) -> CenterlineGraph:
+    """The centerline extended to each open vessel end of the lumen that none of its vessel
+    ends reaches but that lies in the vessel around it (:func:`.ends.graft_to`).
+
+    The skeleton leaves out the ends it cannot see (a short end past a junction, a thin side
+    branch inside its parent's covering ball), and the walls would then close them as holes.
+    """
+    for opening in stray_openings(prepared.mesh.vertices, prepared.end_loops, graph):
+        graph, length = graft_to(graph, opening.centre, 0.0, lumen, wall=prepared.mesh)
+        if length:
+            logger.info("%s: extended the centerline %.3g mm to the open vessel end of %.2f mm "
+                        "radius at %s (input units), which it stopped short of", name,
+                        length * 1e3, opening.radius * 1e3,
+                        np.round(opening.centre / prepared.scale, 3).tolist())
+    return graph
+
+
 def _check_near(graph: CenterlineGraph, node: int, point: np.ndarray, what: str, scale: float,
                 name: str) -> None:
     """Raises :class:`BuildError` if ``point`` (m) lies more than
@@ -290,9 +309,10 @@ def _choose_inlet(graph: CenterlineGraph, inlet: np.ndarray | None) -> tuple[int
         return int(ends[np.argmin(np.linalg.norm(graph.nodes[ends] - inlet, axis=1))]), "given"
     widths = []
     for end in ends:
+        # The median over the whole branch: near the end itself the radius of an extracted
+        # centerline falls at a cap and at a cut.
         chain = next(c for c in branch_chains(graph) if end in (c[0], c[-1]))
-        radii = graph.radii[chain]
-        widths.append(float(np.mean(radii[: max(2, len(radii) // 3)])))
+        widths.append(float(np.median(graph.radii[chain])))
     order = np.argsort(widths)[::-1]
     choice = "widest vessel end"
     # Ends of about equal calibre make "widest" a coin toss: say so, so the user passes --inlet.
@@ -539,6 +559,7 @@ def build_vessel(
             closed, params.skeleton, radius_hint=prepared.radius_estimate
         )
     centerline = _grafted(centerline, inlet, targets, closed, scale, name)
+    centerline = _grafted_to_openings(centerline, prepared, closed, name)
     prepared = _close_wall_holes(prepared, centerline, source or name,
                                  params.max_hole_perimeter)
     inlet_node, inlet_choice = _choose_inlet(

@@ -223,11 +223,13 @@ class Opening:
         loop: Vertex indices of the loop, in order.
         centre: Mean of the loop's vertices (m).
         perimeter: Length of the loop (m).
+        radius: Mean distance of the loop's vertices from its centre (m).
     """
 
     loop: NDArray[np.int64]
     centre: FloatArray
     perimeter: float
+    radius: float
 
 
 def stray_openings(
@@ -249,7 +251,7 @@ def stray_openings(
         radius = float(np.linalg.norm(points - centre, axis=1).mean())
         nearest = float(np.linalg.norm(ends - centre, axis=1).min()) if len(ends) else np.inf
         if nearest > reach * radius:
-            stray.append(Opening(loop, centre, loop_perimeter(points)))
+            stray.append(Opening(loop, centre, loop_perimeter(points), radius))
     return stray
 
 

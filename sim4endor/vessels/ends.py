@@ -135,9 +135,14 @@ def _inverse(index: NDArray[np.int64], size: int) -> NDArray[np.int64]:
 #: vessel around it.
 GRAFT_REACH_RADII = 5.0
 
+#: Nodes tried as the start of a graft, nearest (in their radii) first: the nearest one's
+#: straight run may cut a junction's corner where a farther one runs along the branch.
+GRAFT_CANDIDATES = 16
+
 
 def graft_to(graph: CenterlineGraph, point: FloatArray, max_gap: float,
-             lumen: trimesh.Trimesh) -> tuple[CenterlineGraph, float]:
+             lumen: trimesh.Trimesh, wall: trimesh.Trimesh | None = None,
+             ) -> tuple[CenterlineGraph, float]:
     """Extends ``graph`` to ``point`` (m) when its nearest vessel end lies farther than
     ``max_gap`` radii from it but a node lies within :data:`GRAFT_REACH_RADII` of its radii
     and the straight run to it stays in the closed ``lumen`` (m).
@@ -146,7 +151,10 @@ def graft_to(graph: CenterlineGraph, point: FloatArray, max_gap: float,
     junction: its voxels lie in the junction's covering ball, and a short spur is pruned. A
     left coronary tree cut from the aorta 2.7 mm before its bifurcation had no centerline end
     at its inlet, and the given inlet was refused as lying 26 mm outside the lumen. The graft
-    is a straight run of nodes half a radius apart, of the node's radius.
+    is a straight run of nodes half a radius apart. Their radius is their distance from
+    ``wall``, the lumen's surface with its vessel ends open, as the skeleton's radius is the
+    distance to the wall; without it (a given point may sit on the cap of a closed mesh), the
+    node's own.
 
     Returns:
         The graph (``graph`` itself when nothing is grafted) and the grafted length (m).
@@ -158,24 +166,29 @@ def graft_to(graph: CenterlineGraph, point: FloatArray, max_gap: float,
         if np.linalg.norm(graph.nodes[end] - point) - radii[end] <= max_gap * radii[end]:
             return graph, 0.0
     gaps = np.linalg.norm(graph.nodes - point, axis=1)
-    node = int(np.argmin(gaps / radii))
-    if gaps[node] > GRAFT_REACH_RADII * radii[node]:
-        return graph, 0.0
-    count = max(1, int(np.ceil(gaps[node] / (0.5 * radii[node]))))
-    steps = graph.nodes[node] + (point - graph.nodes[node]) * (np.arange(1, count + 1)
-                                                                / count)[:, None]
-    # The point itself may sit on a cap; the run up to a tenth of a radius before it must be in.
-    inner = steps - 0.1 * radii[node] * (point - graph.nodes[node]) / gaps[node]
-    if not lumen.contains(inner).all():
-        return graph, 0.0
-    first = graph.num_nodes
-    chain = np.concatenate([[node], np.arange(first, first + count)])
-    branch = None if graph.branch is None else np.concatenate(
-        [graph.branch, np.full(count, graph.branch[node])])
-    grafted = CenterlineGraph(
-        np.vstack([graph.nodes, steps]),
-        np.concatenate([radii, np.full(count, radii[node])]),
-        np.vstack([graph.edges, np.column_stack([chain[:-1], chain[1:]])]),
-        dict(graph.labels), branch, graph.branch_names,
-    )
-    return grafted, float(gaps[node])
+    order = np.argsort(gaps / radii)[:GRAFT_CANDIDATES]
+    point_radius = None if wall is None else float(wall.nearest.on_surface([point])[1][0])
+    for node in order[gaps[order] <= GRAFT_REACH_RADII * radii[order]]:
+        spacing = 0.5 * min(float(radii[node]), np.inf if point_radius is None else point_radius)
+        count = max(1, int(np.ceil(gaps[node] / spacing)))
+        steps = graph.nodes[node] + (point - graph.nodes[node]) * (np.arange(1, count + 1)
+                                                                    / count)[:, None]
+        # The point itself may sit on a cap; the run up to a fifth of the spacing before it
+        # must be in.
+        inner = steps - 0.2 * spacing * (point - graph.nodes[node]) / gaps[node]
+        if not lumen.contains(inner).all():
+            continue
+        step_radii = (np.full(count, radii[node]) if wall is None
+                      else wall.nearest.on_surface(steps)[1])
+        first = graph.num_nodes
+        chain = np.concatenate([[node], np.arange(first, first + count)])
+        branch = None if graph.branch is None else np.concatenate(
+            [graph.branch, np.full(count, graph.branch[node])])
+        grafted = CenterlineGraph(
+            np.vstack([graph.nodes, steps]),
+            np.concatenate([radii, step_radii]),
+            np.vstack([graph.edges, np.column_stack([chain[:-1], chain[1:]])]),
+            dict(graph.labels), branch, graph.branch_names,
+        )
+        return grafted, float(gaps[node])
+    return graph, 0.0
