@@ -13,8 +13,10 @@ import trimesh
 
 from sim4endor.vessels.build import BuildError, BuildParams, build_vessel
 from sim4endor.vessels.centerline import CenterlineGraph
-from sim4endor.vessels.ends import trim_narrow_ends
+from sim4endor.vessels.checks import stray_openings
+from sim4endor.vessels.ends import OPENING_BESIDE_RADII, graft_to, trim_narrow_ends
 from sim4endor.vessels.generators.tubes import TubeBranch, lumen_mesh, sweep_tube
+from sim4endor.vessels.meshio import boundary_loops
 from sim4endor.vessels.walls import WallParams
 
 SERIAL = BuildParams(wall=WallParams(workers=1, use_coacd=False))
@@ -194,3 +196,33 @@ def test_open_vessel_ends_the_skeleton_leaves_out_stay_open_ends(
     np.testing.assert_allclose(graph.nodes[end], side[-1], atol=0.1e-3)
     # The graft's radius is its distance from the wall, the side branch's own at its end.
     assert graph.radii[end] == pytest.approx(0.6e-3, rel=0.1)
+
+
+def test_a_hole_beside_the_centerline_is_not_grafted_to_but_an_end_past_it_is() -> None:
+    """A window cut in a tube's side wall lies about one radius from the axis: grafting the
+    centerline to it would make a hole in the wall a vessel end, open for the wire to leave
+    by. An open end that the centerline stops short of lies past it and is grafted to."""
+    axis = _line(np.zeros(3), [0, 0, 1], 30e-3, 61)
+    radius = 1.5e-3
+    vertices, faces = sweep_tube(axis, np.full(len(axis), radius), 32, flat_start=True)
+    tube = trimesh.Trimesh(vertices, faces, process=False)
+    closed = tube.copy()
+    centre = tube.triangles_center
+    far_cap = centre[:, 2] > axis[-1, 2] - 0.01 * radius
+    window = np.linalg.norm(centre - [radius, 0.0, 15e-3], axis=1) < 1.0e-3
+    tube.update_faces(np.flatnonzero(~far_cap & ~window))
+    tube.remove_unreferenced_vertices()
+    short = CenterlineGraph(axis[:49], np.full(49, radius),
+                            np.column_stack([np.arange(48), np.arange(1, 49)]))
+    openings = stray_openings(np.asarray(tube.vertices), boundary_loops(tube), short)
+    assert len(openings) == 2
+    grafted = {}
+    for opening in sorted(openings, key=lambda o: o.centre[2]):
+        graph, length = graft_to(short, opening.centre, 0.0, closed, wall=tube,
+                                 beside=OPENING_BESIDE_RADII)
+        grafted[round(float(opening.centre[2]) * 1e3)] = (graph, length)
+    assert grafted[15][1] == 0.0 and grafted[15][0] is short  # the window
+    graph, length = grafted[30]  # the open end, 6 mm past the centerline's
+    assert length == pytest.approx(6e-3, rel=0.01)
+    np.testing.assert_allclose(graph.nodes[-1], axis[-1], atol=1e-6)
+    assert graph.radii[-1] == pytest.approx(radius, rel=0.05)

@@ -47,7 +47,7 @@ from sim4endor.vessels.checks import (
     wall_closed_fraction,
     wall_probes,
 )
-from sim4endor.vessels.ends import graft_to, trim_narrow_ends
+from sim4endor.vessels.ends import OPENING_BESIDE_RADII, graft_to, trim_narrow_ends
 from sim4endor.vessels.manifest import MANIFEST_FILE, Inlet, Manifest, below_acceptance
 from sim4endor.vessels.meshio import (
     UNIT_SCALE,
@@ -275,7 +275,8 @@ def _grafted_to_openings(graph: CenterlineGraph, prepared: PreparedLumen,
     branch inside its parent's covering ball), and the walls would then close them as holes.
     """
     for opening in stray_openings(prepared.mesh.vertices, prepared.end_loops, graph):
-        graph, length = graft_to(graph, opening.centre, 0.0, lumen, wall=prepared.mesh)
+        graph, length = graft_to(graph, opening.centre, 0.0, lumen, wall=prepared.mesh,
+                                 beside=OPENING_BESIDE_RADII)
         if length:
             logger.info("%s: extended the centerline %.3g mm to the open vessel end of %.2f mm "
                         "radius at %s (input units), which it stopped short of", name,
