@@ -65,8 +65,9 @@ class TerminationConfig:
       every bend without harm (on the vascular phantom a straight insertion puts over 2.5 N
       in total on the wall for about 0.4 N at the tip), so the total wall force is reported
       (``wall_force``) but does not end the episode;
-    * ``outside_lumen``: the tip further than ``lumen_margin`` (m) outside the lumen, i.e.
-      its distance from the centerline graph exceeds the local radius by that much;
+    * ``outside_lumen``: the tip further than ``lumen_margin`` (m) outside the lumen surface
+      (:func:`~sim4endor.tasks.navigation.lumen_excess`: the centerline's tubes where they
+      hold the tip, the surface itself elsewhere);
     * ``insertion_limit``: the commanded insertion beyond ``max_insertion`` (m; default: the
       end of the driver's travel). Retracting to the home position (insertion 0) is a hard
       stop of the carriage, not a failure;

@@ -10,9 +10,11 @@ Example:
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,10 +23,14 @@ from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph
 from sim4endor.vessels.manifest import MANIFEST_FILE, REBUILD, Manifest
 
+if TYPE_CHECKING:
+    import trimesh
+
 logger = logging.getLogger(__name__)
 
 CENTERLINE_FILE = "centerline.json"
 SCENE_FILE = "scene.xml"
+LUMEN_FILE = "lumen.stl"
 
 __all__ = ["CenterlineGraph", "Manifest", "Vessel", "VesselFolderError", "VesselNotFoundError",
            "load", "names"]
@@ -87,6 +93,17 @@ class Vessel:
     def targets(self) -> dict[str, np.ndarray]:
         """Named target points (m)."""
         return {k: np.asarray(v, dtype=np.float64) for k, v in self.manifest.targets.items()}
+
+    @functools.cached_property
+    def lumen(self) -> trimesh.Trimesh:
+        """The lumen surface (m) with its open vessel ends closed by fans, read on first use:
+        the exact inside that the tasks' tip check falls back on where the centerline's tubes
+        leave it in doubt (:func:`sim4endor.tasks.navigation.lumen_excess`)."""
+        import trimesh
+
+        from sim4endor.vessels.meshio import closed
+
+        return closed(trimesh.load_mesh(self.root / LUMEN_FILE))
 
 
 def _is_vessel_folder(path: Path) -> bool:

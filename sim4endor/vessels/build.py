@@ -34,7 +34,7 @@ from tqdm.auto import tqdm
 
 from sim4endor._atomic import atomic_directory, holds_output
 from sim4endor.errors import Sim4EndoRError
-from sim4endor.vessels import CENTERLINE_FILE, SCENE_FILE, Vessel, load
+from sim4endor.vessels import CENTERLINE_FILE, LUMEN_FILE, SCENE_FILE, Vessel, load
 from sim4endor.vessels.axis import AxisSamples, branch_chains, sample_axis
 from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph, arc_lengths
 from sim4endor.vessels.checks import (
@@ -61,7 +61,6 @@ from sim4endor.vessels.meshio import (
 from sim4endor.vessels.mjcf_writer import (
     DISPLAY_DIR,
     HULL_DIR,
-    LUMEN_FILE,
     write_meshes,
     write_scene,
     write_vessel_mjcf,

@@ -291,7 +291,8 @@ def check_folder(vessel: Vessel, params: CheckParams | None = None) -> dict[str,
     """
     import mujoco
 
-    from sim4endor.vessels.mjcf_writer import HULL_DIR, LUMEN_FILE
+    from sim4endor.vessels import LUMEN_FILE
+    from sim4endor.vessels.mjcf_writer import HULL_DIR
 
     params = params or CheckParams()
     # MuJoCo first: it opens every file the MJCF names, and says which one fails.

@@ -28,9 +28,9 @@ import numpy as np
 import trimesh
 from numpy.typing import NDArray
 
-from sim4endor.vessels import CENTERLINE_FILE, SCENE_FILE, Vessel, load
+from sim4endor.vessels import CENTERLINE_FILE, LUMEN_FILE, SCENE_FILE, Vessel, load
 from sim4endor.vessels.manifest import MANIFEST_FILE
-from sim4endor.vessels.mjcf_writer import HULL_DIR, LUMEN_FILE
+from sim4endor.vessels.mjcf_writer import HULL_DIR
 
 FloatArray = NDArray[np.float64]
 

@@ -344,6 +344,12 @@ def close_openings(prepared: PreparedLumen, loops: list[NDArray[np.int64]]) -> P
     )
 
 
+def closed(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """Returns ``mesh`` with every boundary loop closed by a fan (a folder's lumen, whose
+    vessel ends are open)."""
+    return _fill_loops(mesh, boundary_loops(mesh))
+
+
 def capped(prepared: PreparedLumen) -> trimesh.Trimesh:
     """Returns the lumen with its open ends closed by fans (for voxelisation)."""
     return _fill_loops(prepared.mesh, prepared.end_loops)

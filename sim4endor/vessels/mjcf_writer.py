@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 
 from sim4endor import assets
+from sim4endor.vessels import LUMEN_FILE
 from sim4endor.vessels.remesh import display_parts
 from sim4endor.vessels.walls import Hull
 
@@ -23,7 +24,6 @@ DEFAULTS_FILE = "vessel_defaults.xml"
 WALL_CLASS = "vessel_wall"
 VISUAL_CLASS = "vessel_visual"
 HULL_DIR = "hulls"
-LUMEN_FILE = "lumen.stl"
 LUMEN_GEOM = "lumen"
 #: Where a lumen decimated for the wall keeps its full-resolution surface, for display, in
 #: parts under MuJoCo's faces-per-mesh limit (``part_000.stl``...).
