@@ -180,6 +180,10 @@ def test_open_vessel_ends_the_skeleton_leaves_out_stay_open_ends(
     assert vessel.manifest.checks["lumen_open"] >= 0.99 and len(vessel.targets) == 2
     assert any("to the open vessel end of 2.00 mm radius" in r.getMessage()
                for r in caplog.records)
+    # The wire enters square to the cut, along the trunk, not along the graft's chord
+    # towards a branch (on NARCO_119's left tree the chord's 12.8° pressed the tip into the
+    # wall at every start).
+    assert vessel.inlet_direction @ np.array([0.0, 0.0, 1.0]) > np.cos(np.radians(1.0))
 
     trunk = _line(np.zeros(3), [0, 0, 1], 20e-3, 40)
     side = _line(trunk[20], [1, 0.3, 0.2], 5.5e-3, 40)

@@ -215,6 +215,10 @@ def wall_closed_fraction(hulls: Sequence[Hull], probes: FloatArray, slack: float
     return float(np.mean(bound <= slack))
 
 
+#: A centerline end this many radii of an opening from its centre, or nearer, ends there.
+OPENING_REACH_RADII = 3.0
+
+
 @dataclass(frozen=True)
 class Opening:
     """A boundary loop of the lumen surface (an opening in it).
@@ -232,9 +236,20 @@ class Opening:
     radius: float
 
 
+def openings(vertices: FloatArray, loops: Sequence[NDArray[np.int64]]) -> list[Opening]:
+    """The openings of a lumen surface, one per boundary loop of ``vertices`` (m)."""
+    out = []
+    for loop in loops:
+        points = vertices[loop]
+        centre = points.mean(axis=0)
+        radius = float(np.linalg.norm(points - centre, axis=1).mean())
+        out.append(Opening(loop, centre, loop_perimeter(points), radius))
+    return out
+
+
 def stray_openings(
     vertices: FloatArray, loops: Sequence[NDArray[np.int64]], graph: CenterlineGraph,
-    reach: float = 3.0,
+    reach: float = OPENING_REACH_RADII,
 ) -> list[Opening]:
     """Returns the openings of the lumen that are not vessel ends.
 
@@ -245,13 +260,11 @@ def stray_openings(
     """
     ends = graph.nodes[graph.terminal_nodes()]
     stray = []
-    for loop in loops:
-        points = vertices[loop]
-        centre = points.mean(axis=0)
-        radius = float(np.linalg.norm(points - centre, axis=1).mean())
-        nearest = float(np.linalg.norm(ends - centre, axis=1).min()) if len(ends) else np.inf
-        if nearest > reach * radius:
-            stray.append(Opening(loop, centre, loop_perimeter(points), radius))
+    for opening in openings(vertices, loops):
+        nearest = (float(np.linalg.norm(ends - opening.centre, axis=1).min()) if len(ends)
+                   else np.inf)
+        if nearest > reach * opening.radius:
+            stray.append(opening)
     return stray
 
 
