@@ -14,7 +14,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-import trimesh
 from dm_control.mujoco.wrapper import MjData, MjModel
 from dm_control.rl import control
 from dm_control.suite import base
@@ -101,10 +100,10 @@ def lumen_excess(anatomy: Anatomy, point: FloatArray, proj: Projection | None = 
     and the excess is the distance to the nearest edge minus its interpolated radius: the
     every-step case, cheap. A tube's radius is the distance to the nearest wall, so a lumen
     that is not round (a real patient's, or at a junction) reaches past its tubes; outside
-    them the lumen surface itself decides (its signed distance, about 2 ms on a real tree's
-    14,000 faces). On a dfemtoolz patient tree the tubes alone ended an episode as 0.53 mm
-    outside the lumen with the tip 0.34 mm inside the mesh. Points behind the inlet plane are
-    in the introducer sheath and count as inside.
+    them the lumen surface itself decides (:meth:`~sim4endor.vessels.Vessel.surface_excess`).
+    On a dfemtoolz patient tree the tubes alone ended an episode as 0.53 mm outside the lumen
+    with the tip 0.34 mm inside the mesh. Points behind the inlet plane are in the introducer
+    sheath and count as inside.
 
     Args:
         anatomy: The anatomy.
@@ -125,7 +124,7 @@ def lumen_excess(anatomy: Anatomy, point: FloatArray, proj: Projection | None = 
     # and only a point outside the union for the surface.
     if excess <= 0.0 or (excess := min(excess, graph.tube_excess(point))) <= 0.0:
         return excess
-    return -float(trimesh.proximity.signed_distance(vessel.lumen, [point])[0])
+    return vessel.surface_excess(point)
 
 
 class NavigationTask(base.Task):

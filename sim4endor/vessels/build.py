@@ -22,7 +22,7 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -40,10 +40,10 @@ from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph, arc_lengt
 from sim4endor.vessels.checks import (
     CheckParams,
     LumenProbes,
+    Opening,
     blocked_place,
     inlet_cap,
     lumen_probes,
-    openings,
     stray_openings,
     wall_closed_fraction,
     wall_probes,
@@ -184,15 +184,11 @@ def _terminal_direction(graph: CenterlineGraph, node: int) -> np.ndarray:
     return direction / np.linalg.norm(direction)
 
 
-#: A vessel end this close to an opening's centre, in its radii, is a graft's (the skeleton's
-#: own ends stop short of the cap and are extended along their own direction).
-GRAFTED_END_RADII = 0.05
-
-
-def _inlet_direction(graph: CenterlineGraph, node: int, prepared: PreparedLumen) -> np.ndarray:
+def _inlet_direction(graph: CenterlineGraph, node: int, grafted: Sequence[Opening],
+                     vertices: np.ndarray) -> np.ndarray:
     """Unit vector into the vessel at the inlet: square to its opening where the centerline
-    was grafted onto that open end (:func:`_grafted_to_openings`), else along the centerline
-    (:func:`_terminal_direction`).
+    was grafted onto that open end (``grafted``, from :func:`_grafted_to_openings`, whose
+    loops index ``vertices``), else along the centerline (:func:`_terminal_direction`).
 
     A graft is a straight run from a node of some branch to the opening's centre and says
     nothing of the vessel's axis there. On NARCO_119's left tree, cut 2.7 mm before its
@@ -202,9 +198,9 @@ def _inlet_direction(graph: CenterlineGraph, node: int, prepared: PreparedLumen)
     its own direction.
     """
     along = _terminal_direction(graph, node)
-    for opening in openings(prepared.mesh.vertices, prepared.end_loops):
-        if np.linalg.norm(opening.centre - graph.nodes[node]) <= GRAFTED_END_RADII * opening.radius:
-            normal = np.linalg.svd(prepared.mesh.vertices[opening.loop] - opening.centre)[2][2]
+    for opening in grafted:
+        if np.allclose(graph.nodes[node], opening.centre, rtol=0.0, atol=1e-12):
+            normal = np.linalg.svd(vertices[opening.loop] - opening.centre)[2][2]
             return normal if normal @ along > 0 else -normal
     return along
 
@@ -292,22 +288,26 @@ def _grafted(graph: CenterlineGraph, inlet: np.ndarray | None,
 
 
 def _grafted_to_openings(graph: CenterlineGraph, prepared: PreparedLumen,
-                         lumen: trimesh.Trimesh, name: str) -> CenterlineGraph:
+                         lumen: trimesh.Trimesh, name: str
+                         ) -> tuple[CenterlineGraph, list[Opening]]:
     """The centerline extended to each open vessel end of the lumen that none of its vessel
-    ends reaches but that lies in the vessel around it (:func:`.ends.graft_to`).
+    ends reaches but that lies in the vessel around it (:func:`.ends.graft_to`), and those
+    openings (each now a vessel end at its centre).
 
     The skeleton leaves out the ends it cannot see (a short end past a junction, a thin side
     branch inside its parent's covering ball), and the walls would then close them as holes.
     """
+    grafted = []
     for opening in stray_openings(prepared.mesh.vertices, prepared.end_loops, graph):
         graph, length = graft_to(graph, opening.centre, 0.0, lumen, wall=prepared.mesh,
                                  beside=OPENING_BESIDE_RADII)
         if length:
+            grafted.append(opening)
             logger.info("%s: extended the centerline %.3g mm to the open vessel end of %.2f mm "
                         "radius at %s (input units), which it stopped short of", name,
                         length * 1e3, opening.radius * 1e3,
                         np.round(opening.centre / prepared.scale, 3).tolist())
-    return graph
+    return graph, grafted
 
 
 def _check_near(graph: CenterlineGraph, node: int, point: np.ndarray, what: str, scale: float,
@@ -585,7 +585,7 @@ def build_vessel(
             closed, params.skeleton, radius_hint=prepared.radius_estimate
         )
     centerline = _grafted(centerline, inlet, targets, closed, scale, name)
-    centerline = _grafted_to_openings(centerline, prepared, closed, name)
+    centerline, grafted_ends = _grafted_to_openings(centerline, prepared, closed, name)
     prepared = _close_wall_holes(prepared, centerline, source or name,
                                  params.max_hole_perimeter)
     inlet_node, inlet_choice = _choose_inlet(
@@ -619,7 +619,8 @@ def build_vessel(
         for label, point in target_points.items():
             _check_near(graph, graph.labels[label], point, f"target {label}", scale, name)
     _require_connected(graph, name, extracted=given_centerline is None)
-    inlet_dir = _inlet_direction(graph, inlet_node, prepared)
+    # Closing holes appended vertices only: the grafted loops' indices still hold.
+    inlet_dir = _inlet_direction(graph, inlet_node, grafted_ends, prepared.mesh.vertices)
     inlet_pos = graph.nodes[inlet_node]
     inlet_radius = float(graph.radii[inlet_node])
 
