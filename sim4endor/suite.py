@@ -125,7 +125,8 @@ _COMMON_KWARGS = (
 _DOMAIN_KWARGS: Mapping[str, tuple[str, ...]] = {
     "vessel": ("vessel", "target"),
     "random_coronary": ("pool_size", "pool_seed", "cache_dir"),
-    "coronary": ("pool_size", "pool_seed", "side", "target", "target_weights", "cache_dir"),
+    "coronary": ("pool_size", "pool_seed", "side", "anatomy", "target", "target_weights",
+                 "cache_dir"),
 }
 
 
@@ -367,6 +368,7 @@ def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> Ana
             target=None if kwargs.get("target") is None else str(kwargs["target"]),
             same_wire=same_wire,
             target_weights=_target_weights(kwargs),
+            anatomy=kwargs.get("anatomy", "normal"),
         )
     if entry.domain == "random_coronary":
         return random_coronary.pool(
@@ -410,8 +412,10 @@ def load(
             (config dataclasses);
             domain ``vessel``: ``vessel``, ``target``; domain ``random_coronary``:
             ``pool_size``, ``pool_seed``, ``cache_dir``; domain ``coronary``: those and
-            ``side``, ``target``, ``target_weights`` (relative weights of drawing each target
-            label, e.g. ``{"AM": 3}``; others 1).
+            ``side``, ``anatomy`` (``"normal"``, the default, or ``"wide"``: tortuous, stenosed
+            and narrower trees, :data:`sim4endor.tasks.coronary.Anatomies`), ``target``,
+            ``target_weights`` (relative weights of drawing each target label, e.g.
+            ``{"AM": 3}``; others 1).
         environment_kwargs: Passed to ``control.Environment`` (e.g. ``time_limit``).
 
     Raises:

@@ -28,6 +28,7 @@ from sim4endor.tasks.anatomy import AnatomyPool
 from sim4endor.vessels.generators.coronary_arteries import (
     FINET,
     GUIDE_7F_INNER_DIAMETER,
+    AnatomyVariation,
     CoronaryArteriesConfig,
     arteries,
     coronary_arteries,
@@ -238,6 +239,37 @@ def test_the_coronary_domain_builds_a_tree_and_steps(tmp_path: Path) -> None:
         timestep = env.step([1.0, 0.0])
         assert np.isfinite(timestep.reward)
     assert env.task.step_info()["failure"] == ""
+
+
+def test_wide_trees_draw_their_settings_per_seed_within_the_variations_ranges() -> None:
+    variation = AnatomyVariation()
+    drawn = [variation.draw("left", seed) for seed in range(40)]
+    assert variation.draw("left", 7) == drawn[7]
+    for config in drawn:
+        assert variation.curvature_rms[0] <= config.curvature_rms <= variation.curvature_rms[1]
+        assert variation.curvature_length[0] <= config.curvature_length \
+            <= variation.curvature_length[1]
+        assert config.stenosis_severity == variation.stenosis_severity
+        assert config.min_diameter == variation.min_diameter
+    # Every count of stenoses comes up, and the tortuosity spreads over its range.
+    assert {c.stenoses for c in drawn} == {0, 1, 2}
+    rms = [c.curvature_rms for c in drawn]
+    assert max(rms) - min(rms) > 0.6 * (variation.curvature_rms[1] - variation.curvature_rms[0])
+
+
+def test_the_coronary_domain_builds_wide_trees_apart_from_normal_ones(tmp_path: Path) -> None:
+    kwargs = {"random": 0, "pool_size": 1, "pool_seed": 2, "cache_dir": tmp_path}
+    wide = suite.load("coronary", "navigate", {**kwargs, "anatomy": "wide"})
+    wide.reset()
+    assert wide.task.anatomy.vessel.name == "wide_left_coronary_00002"
+    stenosed = AnatomyVariation().draw("left", 2).stenoses
+    assert ("stenoses in" in wide.task.anatomy.vessel.manifest.source) == bool(stenosed)
+    assert np.isfinite(wide.step([1.0, 0.0]).reward)
+    normal = suite.load("coronary", "navigate", kwargs)
+    normal.reset()
+    assert normal.task.anatomy.vessel.name == "left_coronary_00002"
+    with pytest.raises(TaskConfigError, match=r"anatomy must be one of.*'rough'"):
+        suite.load("coronary", "navigate", {**kwargs, "anatomy": "rough"})
 
 
 def tip_bend_deg(physics) -> float:

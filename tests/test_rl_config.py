@@ -62,6 +62,21 @@ def test_bad_target_weights_name_the_field(override: str, message: str) -> None:
         apply_overrides(default_config("sac"), [override])
 
 
+def test_a_recipe_source_of_wide_trees_reaches_the_coronary_task() -> None:
+    from sim4endor.rl.recipe import Source
+
+    policy = load_config(EXPERIMENTS / "generalist" / "config.yaml").env
+    env = Source(domain="coronary", pool_seed=300, pool_size=50, anatomy="wide").env(policy)
+    assert env.task_kwargs(0)["anatomy"] == "wide"
+    # Not named: the policy's own trees (normal ones, which the task draws by default).
+    assert "anatomy" not in Source(domain="coronary").env(policy).task_kwargs(0)
+    # Another domain drops the run's anatomy, as it drops its tree pool.
+    wide = apply_overrides(default_config("sac"), ["env.domain=coronary", "env.anatomy=wide"])
+    assert Source(domain="random_coronary").env(wide.env).anatomy is None
+    with pytest.raises(ConfigError, match="anatomy chooses the coronary domain's trees"):
+        apply_overrides(default_config("sac"), ["env.anatomy=wide"])
+
+
 def test_overrides_parse_values_as_yaml() -> None:
     config = apply_overrides(
         default_config("sac"),

@@ -76,6 +76,7 @@ from sim4endor import suite, vessels
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import fidelity as fidelities
 from sim4endor.models import wires
+from sim4endor.tasks import coronary
 from sim4endor.tasks.expert import CenterlineExpert, ProbingExpert, run_expert
 
 TASKS = (("simplified_phantom", "task_a"), ("simplified_phantom", "task_b"),
@@ -155,10 +156,12 @@ def _wire_kwargs(wire: str | dict[str, object] | None, fidelity: str | None
             if value is not None}
 
 
-def coronary_cases(seed: int, wire: str | dict[str, object], fidelity: str | None = None
-                   ) -> list[Case]:
-    """One case per distal target of coronary tree ``seed`` (builds and caches the tree)."""
-    tree = {"pool_seed": seed, "pool_size": 1, **_wire_kwargs(wire, fidelity)}
+def coronary_cases(seed: int, wire: str | dict[str, object], fidelity: str | None = None,
+                   anatomy: str = "normal") -> list[Case]:
+    """One case per distal target of coronary tree ``seed`` of ``anatomy`` (builds and caches
+    the tree)."""
+    tree = {"pool_seed": seed, "pool_size": 1, "anatomy": anatomy,
+            **_wire_kwargs(wire, fidelity)}
     env = suite.load("coronary", "navigate", tree)
     targets = sorted(env.task.anatomy.vessel.targets)
     env.close()
@@ -227,6 +230,8 @@ def main() -> None:
                         default="phantoms")
     parser.add_argument("--trees", type=int, default=20, help="coronary trees")
     parser.add_argument("--first-seed", type=int, default=1000, help="first coronary tree seed")
+    parser.add_argument("--anatomy", choices=coronary.ANATOMIES, default="normal",
+                        help="coronary trees: normal, or wide (tortuous, stenosed, narrower)")
     parser.add_argument("--vessels", type=Path, nargs="+", metavar="DIR",
                         help="vessel folders (--domain vessel)")
     parser.add_argument("--wire", help="wire preset (default: workhorse on coronary trees and "
@@ -263,11 +268,13 @@ def main() -> None:
             if args.domain == "coronary":
                 seeds = range(args.first_seed, args.first_seed + args.trees)
                 trees = pool.starmap(coronary_cases,
-                                     [(seed, wire, args.fidelity) for seed in seeds])
-                summary = {"domain": "coronary", "wire": wire, "fidelity": args.fidelity,
-                           "trees": args.trees, "first_seed": args.first_seed}
-                name = (f"coronary ({wire} wire, {args.trees} trees from seed "
-                        f"{args.first_seed})")
+                                     [(seed, wire, args.fidelity, args.anatomy)
+                                      for seed in seeds])
+                summary = {"domain": "coronary", "anatomy": args.anatomy, "wire": wire,
+                           "fidelity": args.fidelity, "trees": args.trees,
+                           "first_seed": args.first_seed}
+                name = (f"coronary ({args.anatomy} anatomy, {wire} wire, {args.trees} trees "
+                        f"from seed {args.first_seed})")
             else:
                 try:
                     trees = [vessel_cases(folder, wire, args.fidelity)

@@ -106,6 +106,8 @@ class EnvConfig:
         eval_pool_seed: generated-tree domains: seed of the first evaluation tree; a seed at
             least ``pool_size`` away from ``pool_seed`` gives a held-out split (``None``:
             evaluate on the training trees).
+        anatomy: domain ``coronary``: ``normal`` or ``wide`` trees
+            (:data:`sim4endor.tasks.coronary.Anatomies`; ``None``: normal).
         target_weights: domain ``coronary``, training only: relative weights of drawing each
             target label, e.g. ``{AM: 3, RV: 3}`` (others 1), a curriculum that trains more on
             the branches a policy misses; evaluations keep drawing targets uniformly, so
@@ -126,6 +128,7 @@ class EnvConfig:
     pool_seed: int | None = None
     pool_size: int | None = None
     eval_pool_seed: int | None = None
+    anatomy: str | None = None
     target_weights: dict[str, float] | None = None
 
     def __post_init__(self) -> None:
@@ -151,6 +154,9 @@ class EnvConfig:
                 wires.resolve(self.wire_setting(), self.fidelity)
             except Sim4EndoRError as exc:
                 raise ConfigError(f"env.wire / env.tip / env.fidelity: {exc}") from None
+        if self.anatomy is not None and self.domain != "coronary":
+            raise ConfigError(f"env.anatomy chooses the coronary domain's trees; domain "
+                              f"{self.domain!r} has none.")
         if self.target_weights is not None and self.domain != "coronary":
             raise ConfigError(f"env.target_weights weigh the coronary domain's targets; "
                               f"domain {self.domain!r} draws none.")
@@ -203,6 +209,7 @@ class EnvConfig:
             else self.pool_seed
         given = {"vessel": self.vessel, "target": self.target, "wire": self.wire_setting(),
                  "fidelity": self.fidelity, "pool_seed": pool_seed, "pool_size": self.pool_size,
+                 "anatomy": self.anatomy,
                  "target_weights": None if evaluation else self.target_weights}
         kwargs.update({key: value for key, value in given.items() if value is not None})
         return kwargs

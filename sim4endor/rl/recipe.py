@@ -83,12 +83,15 @@ class Source:
         episodes: episodes collected there per stage.
         pool_seed: seed of the first tree (``None``: the policy's own training trees).
         pool_size: number of trees (``None``: the policy's own).
+        anatomy: domain ``coronary``: ``normal`` or ``wide`` trees (``EnvConfig.anatomy``;
+            ``None``: the policy's own).
     """
 
     domain: str = "coronary"
     episodes: int = 60
     pool_seed: int | None = None
     pool_size: int | None = None
+    anatomy: str | None = None
 
     def __post_init__(self) -> None:
         require(self, "source", ConfigError, positive=("episodes",))
@@ -97,7 +100,8 @@ class Source:
         """The environment of this source, for a policy trained with ``policy``'s settings."""
         fields: dict[str, Any] = {"domain": self.domain}
         fields.update({k: v for k, v in (("pool_seed", self.pool_seed),
-                                          ("pool_size", self.pool_size)) if v is not None})
+                                          ("pool_size", self.pool_size),
+                                          ("anatomy", self.anatomy)) if v is not None})
         return dataclasses.replace(evaluation_env(policy, fields), num_envs=1)
 
 

@@ -25,7 +25,7 @@ import functools
 from collections.abc import Mapping
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from sim4endor.models import wires
 from sim4endor.models.scene import (
@@ -35,9 +35,12 @@ from sim4endor.models.scene import (
     fit_tip,
     with_travel,
 )
-from sim4endor.tasks import anatomy
-from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, compile_anatomy
+from sim4endor.tasks.anatomy import Anatomy, AnatomyPool, cached_build, compile_anatomy
+from sim4endor.tasks.anatomy import default_cache_dir as anatomy_cache_dir
 from sim4endor.tasks.config import TaskConfigError, TerminationConfig
+
+if TYPE_CHECKING:
+    from sim4endor.vessels.generators.coronary_arteries import CoronaryArteriesConfig
 
 #: Pool members when ``task_kwargs`` does not say.
 DEFAULT_POOL_SIZE = 8
@@ -66,11 +69,17 @@ TERMINATION = TerminationConfig(time_limit=40.0, max_tip_force=0.6, tip_force_me
 MAX_INSERTION = 0.16
 
 Sides = Literal["left", "right", "both"]
+#: The pool's anatomy: ``normal`` arteries (the generator's default settings), or ``wide``,
+#: each tree's settings drawn from
+#: :class:`~sim4endor.vessels.generators.coronary_arteries.AnatomyVariation` (tortuous,
+#: stenosed, narrower; for training beyond normal anatomy).
+Anatomies = Literal["normal", "wide"]
+ANATOMIES: tuple[str, ...] = ("normal", "wide")
 
 
 def default_cache_dir() -> Path:
     """Returns ``$XDG_CACHE_HOME/sim4endor/coronary`` (default under ``~/.cache``)."""
-    return anatomy.default_cache_dir("coronary")
+    return anatomy_cache_dir("coronary")
 
 
 def side_of(seed: int, side: Sides) -> Literal["left", "right"]:
@@ -80,17 +89,41 @@ def side_of(seed: int, side: Sides) -> Literal["left", "right"]:
     return side
 
 
-def scene_for(base: SceneConfig | None, same_wire: bool = False) -> SceneConfig:
+def generator_config(seed: int, side: Sides, anatomy: Anatomies = "normal"
+                     ) -> CoronaryArteriesConfig:
+    """The generator settings of the tree of ``seed`` in a pool of ``anatomy``."""
+    from sim4endor.vessels.generators.coronary_arteries import (
+        AnatomyVariation,
+        CoronaryArteriesConfig,
+    )
+
+    if anatomy not in ANATOMIES:
+        raise TaskConfigError(f"task_kwargs anatomy must be one of {list(ANATOMIES)}, got "
+                              f"{anatomy!r}.")
+    tree_side = side_of(seed, side)
+    if anatomy == "wide":
+        return AnatomyVariation().draw(tree_side, seed)
+    return CoronaryArteriesConfig(side=tree_side)
+
+
+def scene_for(base: SceneConfig | None, same_wire: bool = False,
+              anatomy: Anatomies = "normal") -> SceneConfig:
     """The scene a pool's trees are compiled from: travel to the deepest target, the wire long
     enough for it and a tip wider than the guide catheter's bore allows
     (:data:`~sim4endor.models.scene.SOFT_TIP_FILL`) narrowed to it (the catalogue's coronary
     tips are kept as shaped). Each tree then fits its own travel and shaft segments
     (:func:`build_member`); with ``same_wire`` every tree keeps this scene, its shaft
     segments short enough for the tightest bend the generator draws."""
-    from sim4endor.vessels.generators.coronary_arteries import CoronaryArteriesConfig
+    from sim4endor.vessels.generators.coronary_arteries import (
+        AnatomyVariation,
+        CoronaryArteriesConfig,
+    )
 
     scene = with_travel(base or SceneConfig(wire=wires.resolve(DEFAULT_WIRE)), MAX_INSERTION)
     generator = CoronaryArteriesConfig()
+    if anatomy == "wide":
+        generator = dataclasses.replace(
+            generator, min_diameter=AnatomyVariation().min_diameter)
     wire = fit_tip(scene.wire, generator.catheter_radius, SOFT_TIP_FILL,
                    where="a coronary tree's guide catheter")
     if not same_wire:
@@ -107,31 +140,34 @@ def scene_for(base: SceneConfig | None, same_wire: bool = False) -> SceneConfig:
 
 
 def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig,
-                 same_wire: bool = False) -> Anatomy:
+                 same_wire: bool = False, anatomy: Anatomies = "normal") -> Anatomy:
     """Generates the tree of ``seed``, builds it once (cached on disk) and compiles it with
     ``scene``, its travel fitted to the tree's deepest target and its shaft segments to the
     bends and junctions the wire can reach (:func:`~sim4endor.models.scene.config_for_vessel`)
     unless ``same_wire``."""
     from sim4endor.vessels.build import BuildParams
-    from sim4endor.vessels.generators.coronary_arteries import (
-        CoronaryArteriesConfig,
-        coronary_arteries,
-    )
+    from sim4endor.vessels.generators.coronary_arteries import coronary_arteries
     from sim4endor.vessels.walls import WallParams
 
-    config = CoronaryArteriesConfig(side=side_of(seed, side))
+    config = generator_config(seed, side, anatomy)
     # Plain hulls and bisection, as for random_coronary: CoACD saves no hulls on tubes.
     params = BuildParams(wall=WallParams(use_coacd=False))
-    name = f"{config.side}_coronary_{seed:05d}"
-    folder = anatomy.cached_build(coronary_arteries(config, seed=seed), name, cache_dir,
-                                  config, params)
+    name = tree_name(seed, side, anatomy)
+    folder = cached_build(coronary_arteries(config, seed=seed), name, cache_dir, config,
+                          params)
     return compile_anatomy(folder, scene, fit="none" if same_wire else "all")
+
+
+def tree_name(seed: int, side: Sides, anatomy: Anatomies = "normal") -> str:
+    """The tree's name, e.g. ``left_coronary_00012`` or ``wide_right_coronary_00301``."""
+    prefix = "" if anatomy == "normal" else f"{anatomy}_"
+    return f"{prefix}{side_of(seed, side)}_coronary_{seed:05d}"
 
 
 def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = None,
          scene: SceneConfig | None = None, target: str | None = None,
-         same_wire: bool = False, target_weights: Mapping[str, float] | None = None
-         ) -> AnatomyPool:
+         same_wire: bool = False, target_weights: Mapping[str, float] | None = None,
+         anatomy: Anatomies = "normal") -> AnatomyPool:
     """Returns the lazily built pool of ``size`` trees with seeds ``seed ... seed + size - 1``.
 
     Args:
@@ -147,13 +183,15 @@ def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = No
             fitting each tree's travel to its deepest target (slower; for ``wire_shape``).
         target_weights: Draw targets by these relative weights per label (others 1), e.g.
             ``{"AM": 3, "RV": 3}`` (:class:`~sim4endor.tasks.anatomy.AnatomyPool`).
+        anatomy: ``normal`` or ``wide`` (:data:`Anatomies`).
     """
     if side not in ("left", "right", "both"):
         raise TaskConfigError(f"task_kwargs side must be 'left', 'right' or 'both', got {side!r}.")
+    generator_config(seed, side, anatomy)  # refuses an unknown anatomy before any build
     folder = cache_dir or default_cache_dir()
-    fitted = scene_for(scene, same_wire)
+    fitted = scene_for(scene, same_wire, anatomy)
     return AnatomyPool(
-        [functools.partial(build_member, seed + k, folder, side, fitted, same_wire)
+        [functools.partial(build_member, seed + k, folder, side, fitted, same_wire, anatomy)
          for k in range(size)],
         target=target,
         target_weights=target_weights,

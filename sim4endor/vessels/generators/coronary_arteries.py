@@ -179,6 +179,61 @@ class CoronaryArteriesConfig:
 
 
 @dataclass(frozen=True)
+class AnatomyVariation:
+    """Ranges a ``wide`` tree's generator settings are drawn from, one draw per seed: anatomy
+    beyond the normal arteries of the default settings, as elderly and diseased adults have it
+    (issue 79, "train wide").
+
+    Every range holds the default setting, so a wide pool holds normal trees too. Tortuosity:
+    the default 30 1/m RMS curvature at 6 mm correlation up to 110 1/m at 2.5 mm, S-bends and
+    wiggles of a few millimetres' wavelength (radius of curvature down to 9 mm RMS; the cap of
+    ``max_curvature_ratio`` is kept, so no tube folds). Stenoses: up to two focal narrowings of
+    50-70 % diameter, the range between a "significant" (>= 50 %) and a severe one in the
+    ACC/AHA grading (Scanlon et al., J Am Coll Cardiol 1999;33:1756-1824). Calibre: diameters
+    spread over 1.5 published SDs (clipped at 2), the smallest kept at 1.2 mm (0.6 mm radius),
+    the distal calibres a 0.014 in wire still reaches.
+
+    Attributes:
+        curvature_rms: Range of ``CoronaryArteriesConfig.curvature_rms`` (1/m).
+        curvature_length: Range of its correlation length (m).
+        tight_bend_probability: Range of the chance of a tight bend per segment.
+        stenoses: Inclusive range of the number of stenoses.
+        stenosis_severity: Their diameter reduction (fraction).
+        size_sd: Spread of diameters and lengths in published SDs.
+        min_diameter: Smallest drawn lumen diameter (m).
+    """
+
+    curvature_rms: tuple[float, float] = (30.0, 110.0)
+    curvature_length: tuple[float, float] = (2.5e-3, 6e-3)
+    tight_bend_probability: tuple[float, float] = (0.3, 0.7)
+    stenoses: tuple[int, int] = (0, 2)
+    stenosis_severity: tuple[float, float] = (0.5, 0.7)
+    size_sd: float = 1.5
+    min_diameter: float = 1.2e-3
+
+    def draw(self, side: Side, seed: int) -> CoronaryArteriesConfig:
+        """The generator settings of the wide tree of ``seed``: the same seed, the same
+        settings. Drawn from a stream of their own, apart from the tree's (which
+        :func:`coronary_arteries` seeds with ``seed``)."""
+        rng = np.random.default_rng([seed, _VARIATION_STREAM])
+        return CoronaryArteriesConfig(
+            side=side,
+            size_sd=self.size_sd,
+            min_diameter=self.min_diameter,
+            stenoses=int(rng.integers(self.stenoses[0], self.stenoses[1] + 1)),
+            stenosis_severity=self.stenosis_severity,
+            tight_bend_probability=float(rng.uniform(*self.tight_bend_probability)),
+            curvature_rms=float(rng.uniform(*self.curvature_rms)),
+            curvature_length=float(rng.uniform(*self.curvature_length)),
+        )
+
+
+#: Second entry of the seed sequence of a wide tree's settings (any constant; it keeps their
+#: stream apart from the tree's own).
+_VARIATION_STREAM = 79
+
+
+@dataclass(frozen=True)
 class _Drawn:
     """A segment's drawn figures (m, deg)."""
 
