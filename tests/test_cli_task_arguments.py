@@ -279,6 +279,7 @@ def test_generalisation_suite_on_a_tiny_budget(
             "--set", "eval.trials=1", "--set", "eval.max_steps=3"]
     assert _cli(args, capsys)[0] == 0
     status, out, err = _cli(["evaluate", str(run), "--suite", "generalisation", "--trees", "1",
+                             "--wide-trees", "1", "--implicit-trees", "0",
                              "--max-steps", "3", "--steve", str(tmp_path / "none"), "--json",
                              "--no-progress"], capsys)
     assert status == 0, err
@@ -288,11 +289,13 @@ def test_generalisation_suite_on_a_tiny_budget(
                           next(r for r in rows if r.startswith("best constant")),
                           "uniform random"]
     for groups in rows.values():
-        assert set(groups) == {"held_out_trees", "phantoms"}  # stEVE absent: skipped
+        # stEVE absent: skipped; no implicit trees and no --real folder asked for.
+        assert list(groups) == ["held_out_trees", "wide_trees", "phantoms"]
         assert {"success_rate", "spl", "max_tip_force_n"} <= set(groups["phantoms"])
     assert groups["phantoms"]["trials"] == 4
     assert "simplified_phantom task_a" in result["targets"]
     assert any(label.startswith("left_coronary_01000 ") for label in result["targets"])
+    assert any(label.startswith("wide_left_coronary_01000 ") for label in result["targets"])
     assert "steve: skipped" in caplog.text
 
 

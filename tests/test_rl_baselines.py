@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 from navigation_helpers import require_vessel
 
+from sim4endor import vessels
 from sim4endor.rl.baselines import (
     CONSTANT_GRID,
     ConstantAction,
@@ -83,3 +84,33 @@ def test_the_steve_anatomy_is_built_once_into_a_folder_named_after_its_inputs(
     assert second is not None and second.root == first.root and len(builds) == 1
     assert {p: p.stat().st_mtime_ns for p in second.root.rglob("*")} == built
     assert steve_vessel(tmp_path / "no_such_folder") is None
+
+
+def test_the_suite_reports_wide_implicit_and_real_anatomy_as_their_own_groups() -> None:
+    from sim4endor.rl.generalisation import GROUPS, SuiteConfig, suite_cases
+
+    folder = vessels.load("vascular_phantom").root  # any built folder stands in for a patient's
+    config = SuiteConfig(trees=1, wide_trees=1, implicit_trees=0, real=(folder,),
+                         steve_dir=None)
+    cases = suite_cases(config, "generalist")
+    groups = list(dict.fromkeys(case.group for case in cases))
+    assert groups == ["held_out_trees", "wide_trees", "real", "phantoms"]
+    assert groups == [group for group in GROUPS if group in groups]  # the reported order
+    wide = [case for case in cases if case.group == "wide_trees"]
+    normal = [case for case in cases if case.group == "held_out_trees"]
+    assert all(case.label.startswith("wide_left_coronary_01000 ") for case in wide)
+    assert {case.env.anatomy for case in wide} == {"wide"}
+    assert {case.env.anatomy for case in normal} == {None}
+    real = [case for case in cases if case.group == "real"]
+    assert [case.env.target for case in real] == sorted(vessels.load(folder).targets)
+    assert {case.env.vessel for case in real} == {str(folder)}
+
+
+@pytest.mark.slow
+def test_the_implicit_family_is_built_once_into_the_cache() -> None:
+    from sim4endor.rl.generalisation import implicit_vessels
+
+    first, = implicit_vessels(1)
+    again, = implicit_vessels(1)
+    assert again.root == first.root and first.name == "implicit_coronary_0"
+    assert first.targets

@@ -11,6 +11,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from sim4endor._argtypes import non_negative_int as non_negative_int
 from sim4endor._argtypes import positive_float as positive_float
 from sim4endor._argtypes import positive_int as positive_int
 from sim4endor._argtypes import seed as seed

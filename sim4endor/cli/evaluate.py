@@ -53,14 +53,24 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     suite = parser.add_argument_group(
         "generalisation suite",
         "--suite generalisation runs the policy zero-shot on held-out generated coronary trees "
-        "(every distal target), both phantoms' targets and the stEVE anatomy, beside the "
-        "scripted expert and open-loop baselines (docs/training.md)")
+        "(every distal target), as many wide ones (tortuous, stenosed, narrower), the "
+        "evaluation-only implicit family, the --real vessel folders, both phantoms' targets "
+        "and the stEVE anatomy, each a group of its own, beside the scripted expert and "
+        "open-loop baselines (docs/training.md)")
     suite.add_argument("--suite", choices=("generalisation",),
                        help="run the named evaluation suite instead of the run's task")
     suite.add_argument("--trees", type=arg_types.positive_int, default=20,
                        help="held-out coronary trees (default: 20)")
     suite.add_argument("--first-seed", type=arg_types.seed, default=1000,
                        help="seed of the first held-out tree (default: 1000)")
+    suite.add_argument("--wide-trees", type=arg_types.non_negative_int, default=10,
+                       help="held-out wide coronary trees, the same seeds (default: 10)")
+    suite.add_argument("--implicit-trees", type=arg_types.non_negative_int, default=6,
+                       help="trees of the evaluation-only implicit family, seeds 0 on, each "
+                            "built once into the cache (default: 6)")
+    suite.add_argument("--real", type=Path, action="append", default=[], metavar="DIR",
+                       help="a vessel folder of a real patient's mesh (`sim4endor vessel "
+                            "build` output); repeat for more")
     suite.add_argument("--steve", type=Path, default=None, metavar="DIR",
                        help="stEVE anatomy folder (default: $SIM4ENDOR_SHARED/data/"
                             "steve_bench_dualdevicenav, or ../shared/...; skipped if absent)")
@@ -124,7 +134,8 @@ def _run_suite(args: argparse.Namespace) -> int:
 
     config = _with_flags(generalisation.SuiteConfig(
         trees=args.trees, first_seed=args.first_seed, trials=args.trials or 1,
-        max_steps=args.max_steps), args)
+        max_steps=args.max_steps, wide_trees=args.wide_trees,
+        implicit_trees=args.implicit_trees, real=tuple(args.real)), args)
     if args.steve is not None:
         config = dataclasses.replace(config, steve_dir=args.steve)
     result = generalisation.evaluate_suite(

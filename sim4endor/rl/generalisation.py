@@ -1,9 +1,15 @@
 """The generalisation suite: a policy, zero-shot, on anatomies it was not trained on.
 
-Three groups of (anatomy, target) cases, all with one wire preset (default ``workhorse``):
+Groups of (anatomy, target) cases, all with one wire preset (default ``workhorse``):
 
 * ``held_out_trees``: every distal target of ``trees`` generated coronary trees, seeds
   ``first_seed`` on (1000 on by default, a range no training pool or test uses);
+* ``wide_trees``: the same for ``wide_trees`` trees of the coronary domain's ``wide`` anatomy
+  (tortuous, stenosed, narrower; the same seeds, other trees);
+* ``implicit``: every target of ``implicit_trees`` trees of the evaluation-only family
+  (:mod:`sim4endor.vessels.generators.implicit_coronary`, seeds 0 on), written apart from the
+  training generators and built as a user's mesh is, each once into the cache;
+* ``real``: every target of the vessel folders of real patients' meshes given (``real``);
 * ``phantoms``: targets A and B of both shipped phantoms;
 * ``steve``: every target of the real stEVE anatomy (``steve_dir``), built once into the
   cache; skipped with a message when its folder is absent.
@@ -35,12 +41,14 @@ from sim4endor.rl.config import EnvConfig
 from sim4endor.rl.envs import sim4endor_env
 from sim4endor.rl.evaluation import rollout_episodes
 from sim4endor.rl.metrics import Episode, summarize
+from sim4endor.tasks.coronary import Anatomies
 from sim4endor.vessels import Vessel
 
 _LOG = logging.getLogger(__name__)
 
 #: The groups, in the order they are reported.
-GROUPS: tuple[str, ...] = ("held_out_trees", "phantoms", "steve")
+GROUPS: tuple[str, ...] = ("held_out_trees", "wide_trees", "implicit", "real", "phantoms",
+                           "steve")
 #: The folder of the stEVE anatomy when ``--steve`` is not given.
 DEFAULT_STEVE_DIR = Path(os.environ.get("SIM4ENDOR_SHARED", "../shared")) / "data" / \
     "steve_bench_dualdevicenav"
@@ -74,6 +82,9 @@ class SuiteConfig:
             own time limits also apply).
         steve_dir: Folder of the stEVE anatomy (its mesh and centerlines); ``None`` or an
             absent folder skips that group.
+        wide_trees: Trees of the ``wide_trees`` group (seeds from ``first_seed``).
+        implicit_trees: Trees of the ``implicit`` group (seeds 0 on).
+        real: Vessel folders of the ``real`` group (``sim4endor vessel build`` output).
     """
 
     trees: int = 20
@@ -85,6 +96,9 @@ class SuiteConfig:
     seed: int = baselines.REPORT_SEED
     max_steps: int = 800
     steve_dir: Path | None = DEFAULT_STEVE_DIR
+    wide_trees: int = 10
+    implicit_trees: int = 6
+    real: tuple[Path, ...] = ()
 
     def for_run(self, run_env: EnvConfig) -> SuiteConfig:
         """This config with the run's tip shape where it names none."""
@@ -105,29 +119,41 @@ class Case:
     env: EnvConfig
 
 
-def tree_cases(first_seed: int, trees: int, base: EnvConfig) -> list[Case]:
-    """Every distal target of the coronary trees ``first_seed ... first_seed + trees - 1``."""
-    from sim4endor.tasks.coronary import side_of
-    from sim4endor.vessels.generators.coronary_arteries import (
-        CoronaryArteriesConfig,
-        coronary_arteries,
-    )
+def tree_cases(first_seed: int, trees: int, base: EnvConfig, anatomy: Anatomies = "normal",
+               group: str = "held_out_trees") -> list[Case]:
+    """Every distal target of the coronary trees ``first_seed ... first_seed + trees - 1`` of
+    ``anatomy`` (:data:`sim4endor.tasks.coronary.Anatomies`)."""
+    from sim4endor.tasks.coronary import generator_config, tree_name
+    from sim4endor.vessels.generators.coronary_arteries import coronary_arteries
 
     cases = []
     for seed in range(first_seed, first_seed + trees):
-        side = side_of(seed, "both")
-        tree = coronary_arteries(CoronaryArteriesConfig(side=side), seed=seed)
+        tree = coronary_arteries(generator_config(seed, "both", anatomy), seed=seed)
         for target in sorted(tree.targets):
             env = dataclasses.replace(base, domain="coronary", task="navigate", pool_seed=seed,
-                                      pool_size=1, target=target)
-            cases.append(Case("held_out_trees", f"{side}_coronary_{seed:05d} {target}", env))
+                                      pool_size=1, target=target,
+                                      anatomy=None if anatomy == "normal" else anatomy)
+            cases.append(Case(group, f"{tree_name(seed, 'both', anatomy)} {target}", env))
     return cases
+
+
+def vessel_cases(group: str, vessel: Vessel, base: EnvConfig) -> list[Case]:
+    """Every target of a vessel folder, labelled ``NAME TARGET``."""
+    return [Case(group, f"{vessel.name} {target}",
+                 dataclasses.replace(base, domain="vessel", task="navigate",
+                                     vessel=str(vessel.root), target=target))
+            for target in sorted(vessel.targets)]
 
 
 def suite_cases(config: SuiteConfig, observations: str) -> list[Case]:
     """The cases of every group for a policy observing ``observations``."""
     base = config.base_env(observations)
     cases = tree_cases(config.first_seed, config.trees, base)
+    cases += tree_cases(config.first_seed, config.wide_trees, base, "wide", "wide_trees")
+    for vessel in implicit_vessels(config.implicit_trees):
+        cases += vessel_cases("implicit", vessel, base)
+    for folder in config.real:
+        cases += vessel_cases("real", vessels.load(folder), base)
     cases += [Case("phantoms", f"{phantom} {task}",
                    dataclasses.replace(base, domain=phantom, task=task))
               for phantom in PHANTOMS for task in PHANTOM_TASKS]
@@ -136,11 +162,24 @@ def suite_cases(config: SuiteConfig, observations: str) -> list[Case]:
         _LOG.warning("steve: skipped, no stEVE anatomy at %s (set SIM4ENDOR_SHARED to the "
                      "shared/ folder or pass --steve DIR)", config.steve_dir)
         return cases
-    for target in sorted(steve.targets):
-        env = dataclasses.replace(base, domain="vessel", task="navigate", vessel=str(steve.root),
-                                  target=target)
-        cases.append(Case("steve", f"steve {target}", env))
-    return cases
+    return cases + vessel_cases("steve", steve, base)
+
+
+def implicit_vessels(trees: int) -> list[Vessel]:
+    """Trees ``0 ... trees - 1`` of the evaluation-only family, each built once into the cache
+    (a folder named after a hash of its surface and the build's code: 13-42 s a build)."""
+    from sim4endor.tasks.anatomy import build_once, default_cache_dir
+    from sim4endor.vessels.build import content_hash
+    from sim4endor.vessels.generators import implicit_coronary as family
+
+    built = []
+    for seed in range(trees):
+        tree = family.implicit_coronary(family.ImplicitCoronaryConfig(), seed)
+        digest = content_hash(tree.lumen, inlet=tree.inlet, targets=tree.targets)[:12]
+        folder = default_cache_dir("implicit_coronary") / f"implicit_coronary_{seed}_{digest}"
+        built.append(vessels.load(build_once(
+            folder, functools.partial(family.build_tree, tree, seed))))
+    return built
 
 
 def steve_vessel(folder: Path | None) -> Vessel | None:

@@ -305,11 +305,16 @@ def implicit_coronary(config: ImplicitCoronaryConfig, seed: int) -> ImplicitTree
 
 def build_folder(seed: int, out_dir: Path, config: ImplicitCoronaryConfig | None = None,
                  progress: bool = False) -> Vessel:
-    """Draws tree ``seed`` and builds it as a user's mesh: the centerline extracted from the
+    """Draws tree ``seed`` and builds it as a user's mesh (:func:`build_tree`)."""
+    return build_tree(implicit_coronary(config or ImplicitCoronaryConfig(), seed), seed,
+                      out_dir, progress)
+
+
+def build_tree(tree: ImplicitTree, seed: int, out_dir: Path, progress: bool = False) -> Vessel:
+    """Builds the drawn tree ``seed`` as a user's mesh: the centerline extracted from the
     surface, the inlet and the distal ends given as points."""
     from sim4endor.vessels.build import build_vessel
 
-    tree = implicit_coronary(config or ImplicitCoronaryConfig(), seed)
     return build_vessel(tree.lumen, name=f"implicit_coronary_{seed}", out_dir=out_dir,
                         units="m", inlet=tree.inlet, targets=tree.targets,
                         source=tree.description, progress=progress)
