@@ -331,7 +331,7 @@ def test_pool_trees_get_wires_for_their_own_depth_unless_the_wire_is_observed(
     module = coronary if domain == "coronary" else random_coronary
     modes = []
 
-    def fake_member(*args):  # stands in for a tree build: (..., scene, same_wire)
+    def fake_member(*args, **kwargs):  # stands in for a tree build: (..., scene, same_wire)
         scene, same_wire = args[-2:]
         modes.append(same_wire)
         return compile_anatomy("simplified_phantom", scene,

@@ -191,7 +191,8 @@ def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = No
     folder = cache_dir or default_cache_dir()
     fitted = scene_for(scene, same_wire, anatomy)
     return AnatomyPool(
-        [functools.partial(build_member, seed + k, folder, side, fitted, same_wire, anatomy)
+        [functools.partial(build_member, seed + k, folder, side, fitted, same_wire,
+                           anatomy=anatomy)
          for k in range(size)],
         target=target,
         target_weights=target_weights,
