@@ -29,7 +29,7 @@ import logging
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tensordict.nn import TensorDictModuleBase
 from torchrl.envs import EnvBase
@@ -41,8 +41,10 @@ from sim4endor.rl.config import EnvConfig
 from sim4endor.rl.envs import sim4endor_env
 from sim4endor.rl.evaluation import rollout_episodes
 from sim4endor.rl.metrics import Episode, summarize
-from sim4endor.tasks.coronary import Anatomies
 from sim4endor.vessels import Vessel
+
+if TYPE_CHECKING:
+    from sim4endor.tasks.coronary import Anatomies
 
 _LOG = logging.getLogger(__name__)
 
