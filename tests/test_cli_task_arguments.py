@@ -278,10 +278,11 @@ def test_generalisation_suite_on_a_tiny_budget(
             "--set", "collector.init_random_frames=30", "--set", "network.hidden_sizes=[8]",
             "--set", "eval.trials=1", "--set", "eval.max_steps=3"]
     assert _cli(args, capsys)[0] == 0
+    patient = vessels.load("simplified_phantom").root  # a built folder stands in for one
     status, out, err = _cli(["evaluate", str(run), "--suite", "generalisation", "--trees", "1",
-                             "--wide-trees", "1", "--implicit-trees", "0",
-                             "--max-steps", "3", "--steve", str(tmp_path / "none"), "--json",
-                             "--no-progress"], capsys)
+                             "--wide-trees", "1", "--implicit-trees", "0", "--real",
+                             str(patient), "--max-steps", "3", "--steve",
+                             str(tmp_path / "none"), "--json", "--no-progress"], capsys)
     assert status == 0, err
     result = json.loads(out)
     rows = result["rows"]
@@ -289,14 +290,20 @@ def test_generalisation_suite_on_a_tiny_budget(
                           next(r for r in rows if r.startswith("best constant")),
                           "uniform random"]
     for groups in rows.values():
-        # stEVE absent: skipped; no implicit trees and no --real folder asked for.
-        assert list(groups) == ["held_out_trees", "wide_trees", "phantoms"]
+        # stEVE absent: skipped; no implicit trees asked for.
+        assert list(groups) == ["held_out_trees", "wide_trees", "real", "phantoms"]
         assert {"success_rate", "spl", "max_tip_force_n"} <= set(groups["phantoms"])
     assert groups["phantoms"]["trials"] == 4
     assert "simplified_phantom task_a" in result["targets"]
     assert any(label.startswith("left_coronary_01000 ") for label in result["targets"])
     assert any(label.startswith("wide_left_coronary_01000 ") for label in result["targets"])
     assert "steve: skipped" in caplog.text
+    # In 3 steps the probing expert reaches neither real target: both reported, with why.
+    reach = result["reachability"]
+    assert sorted(reach) == ["simplified_phantom A", "simplified_phantom B"]
+    assert {r["outcome"] for r in reach.values()} == {"timeout"}
+    assert all(r["reason"].startswith("timeout; lumen ") for r in reach.values())
+    assert result["real_reachable"] == {"successes": 0, "reachable": 0, "targets": 2}
 
 
 def test_a_shipped_policy_by_name_on_every_target_of_a_vessel_folder(

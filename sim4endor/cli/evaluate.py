@@ -144,7 +144,7 @@ def _run_suite(args: argparse.Namespace) -> int:
     if args.json:
         print(strict_json.dumps(result))  # noqa: T201
     else:
-        print(generalisation.markdown(result["rows"]))  # noqa: T201
+        print(generalisation.markdown(result))  # noqa: T201
     return 0
 
 

@@ -36,7 +36,8 @@ from torchrl.envs import EnvBase
 from tqdm.auto import tqdm
 
 from sim4endor import vessels
-from sim4endor.rl import baselines
+from sim4endor.errors import Sim4EndoRError
+from sim4endor.rl import baselines, reachability
 from sim4endor.rl.config import EnvConfig
 from sim4endor.rl.envs import sim4endor_env
 from sim4endor.rl.evaluation import rollout_episodes
@@ -163,8 +164,23 @@ def suite_cases(config: SuiteConfig, observations: str) -> list[Case]:
     if steve is None:
         _LOG.warning("steve: skipped, no stEVE anatomy at %s (set SIM4ENDOR_SHARED to the "
                      "shared/ folder or pass --steve DIR)", config.steve_dir)
-        return cases
-    return cases + vessel_cases("steve", steve, base)
+    else:
+        cases += vessel_cases("steve", steve, base)
+    labels = [case.label for case in cases]
+    if len(set(labels)) != len(labels):  # each case's episodes and environment go by label
+        twice = sorted({label for label in labels if labels.count(label) > 1})
+        raise Sim4EndoRError(f"Two suite cases are labelled {twice[0]!r}: two --real folders "
+                             "hold vessels of one name; give one of them.")
+    return cases
+
+
+def policy_cases(run_dir: Path, config: SuiteConfig) -> list[Case]:
+    """The suite's cases for a run's policy: its observation set, and its tip shape where
+    ``config`` names none (:meth:`SuiteConfig.for_run`)."""
+    from sim4endor.rl.runs import run_config
+
+    run_env = run_config(run_dir).env
+    return suite_cases(config.for_run(run_env), run_env.observations)
 
 
 def implicit_vessels(trees: int) -> list[Vessel]:
@@ -309,13 +325,16 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
 
     Returns:
         ``rows``: policy label → group → metrics (:func:`group_metrics`), the run first;
-        ``targets``: the run's success rate per case label (the per-target breakdown).
+        ``targets``: the run's success rate per case label (the per-target breakdown);
+        ``reachability``: with ``config.real``, each real target's probing-expert episode
+        (:mod:`sim4endor.rl.reachability`: reachable, or why not) and ``real_reachable``, the
+        run's successes over the reachable ones.
     """
     from sim4endor.rl.runs import run_config
 
     train_config = run_config(run_dir)
     config = config.for_run(train_config.env)
-    cases = suite_cases(config, train_config.env.observations)
+    cases = policy_cases(run_dir, config)
     envs = CaseEnvironments()
     try:
         episodes = run_cases(cases, run_actor(run_dir), config, envs,
@@ -324,10 +343,18 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
         if with_baselines:
             rows.update(reference_rows(config, train_config.env.observations, cases, envs,
                                        progress))
+        real = [case for case in cases if case.group == "real"]
+        reach = reachability.probe(real, config, envs, progress) if real else {}
     finally:
         envs.close()
     targets = {label: summarize(runs)["success_rate"] for label, runs in episodes.items()}
-    return {"rows": rows, "targets": targets}
+    result: dict[str, Any] = {"rows": rows, "targets": targets}
+    if reach:
+        reached, reachable = reachability.reachable_successes(reach, targets)
+        result.update(reachability=reachability.as_json(reach),
+                      real_reachable={"successes": reached, "reachable": reachable,
+                                      "targets": len(reach)})
+    return result
 
 
 def evaluate_vessel(policy: Path | baselines.Baseline, vessel: str | Path, config: SuiteConfig,
@@ -389,7 +416,22 @@ def _baseline_actor(baseline: baselines.Baseline, env: EnvBase) -> TensorDictMod
     return baselines.policy(baseline, env)
 
 
-def markdown(rows: dict[str, dict[str, dict[str, Any]]]) -> str:
+def markdown(result: dict[str, Any]) -> str:
+    """:func:`evaluate_suite`'s result: one table row per (policy, group) with success, mean
+    time, SPL and largest tip force; then, with real patients, the policy's successes over
+    their reachable targets and why each other target is out of reach."""
+    lines = [table(result["rows"])]
+    if "real_reachable" in result:
+        counts = result["real_reachable"]
+        lines.append(f"\nreal: the policy reaches {counts['successes']:g} of the "
+                     f"{counts['reachable']} targets (of {counts['targets']}) the probing "
+                     "expert reaches")
+        lines += [f"- unreachable: {label}: {reach['reason']}"
+                  for label, reach in result["reachability"].items() if not reach["reachable"]]
+    return "\n".join(lines)
+
+
+def table(rows: dict[str, dict[str, dict[str, Any]]]) -> str:
     """One table row per (policy, group): success, mean time, SPL, largest tip force."""
     lines = ["| policy | group | success | mean time (s) | SPL | max tip force (N) |",
              "|---|---|---|---|---|---|"]

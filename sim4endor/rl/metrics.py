@@ -98,6 +98,11 @@ def spl_term(success: bool, shortest: float, travelled: float) -> float:
     return 1.0 if longest <= 0.0 else shortest / longest
 
 
+def largest_tip_force(episode: Episode) -> float:
+    """One episode's largest finite step-mean tip force in N (0 when none was recorded)."""
+    return _largest_finite([episode.tip_forces])
+
+
 def summarize(episodes: Sequence[Episode]) -> dict[str, float | int | dict[str, int] | None]:
     """Returns the metrics of :data:`METRIC_KEYS` over ``episodes`` (see the module docstring)."""
     if not episodes:
