@@ -125,8 +125,8 @@ _COMMON_KWARGS = (
 _DOMAIN_KWARGS: Mapping[str, tuple[str, ...]] = {
     "vessel": ("vessel", "target"),
     "random_coronary": ("pool_size", "pool_seed", "cache_dir"),
-    "coronary": ("pool_size", "pool_seed", "side", "anatomy", "target", "target_weights",
-                 "cache_dir"),
+    "coronary": ("pool_size", "pool_seed", "side", "anatomy", "vary_wire", "target",
+                 "target_weights", "cache_dir"),
 }
 
 
@@ -369,6 +369,7 @@ def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> Ana
             same_wire=same_wire,
             target_weights=_target_weights(kwargs),
             anatomy=kwargs.get("anatomy", "normal"),
+            vary_wire=kwargs.get("vary_wire", False),
         )
     if entry.domain == "random_coronary":
         return random_coronary.pool(
@@ -413,7 +414,9 @@ def load(
             domain ``vessel``: ``vessel``, ``target``; domain ``random_coronary``:
             ``pool_size``, ``pool_seed``, ``cache_dir``; domain ``coronary``: those and
             ``side``, ``anatomy`` (``"normal"``, the default, or ``"wide"``: tortuous, stenosed
-            and narrower trees, :data:`sim4endor.tasks.coronary.Anatomies`), ``target``,
+            and narrower trees, :data:`sim4endor.tasks.coronary.Anatomies`), ``vary_wire``
+            (each tree its own unit of the wire: stiffness, friction and tip shape drawn
+            within :class:`sim4endor.models.wires.WireVariation`'s ranges), ``target``,
             ``target_weights`` (relative weights of drawing each target label, e.g.
             ``{"AM": 3}``; others 1).
         environment_kwargs: Passed to ``control.Environment`` (e.g. ``time_limit``).

@@ -473,3 +473,46 @@ def test_a_tree_another_process_is_building_is_waited_for_not_built_again(
     # With no one else building, the tree is built (once).
     other = anatomy.cached_build(coronary_arteries(LEFT, 1), "left_1", tmp_path, LEFT, params)
     assert builds == [other]
+
+
+def test_a_wire_variation_draws_one_unit_per_seed_within_its_ranges() -> None:
+    variation = wires.WireVariation.catalogue()
+    wire = wires.preset("workhorse")
+    units = [variation.draw(wire, seed) for seed in range(40)]
+    assert variation.draw(wire, 7) == units[7]
+    stiffness = [u.youngs_modulus / wire.youngs_modulus for u in units]
+    friction = [u.friction / wire.friction for u in units]
+    for unit, scale in zip(units, stiffness, strict=True):
+        assert unit.shear_modulus / wire.shear_modulus == pytest.approx(scale)
+        assert abs(unit.tip_length - wire.tip_length) <= variation.tip_length + 1e-12
+        assert abs(unit.tip_angle - wire.tip_angle) <= variation.tip_angle + 1e-12
+        # Still a shape a cardiologist could bend (TipShape checks its ranges).
+        wires.TipShape(unit.tip_length, unit.tip_angle, unit.secondary_distance,
+                       unit.secondary_angle)
+    for drawn, (low, high) in ((stiffness, variation.stiffness_scale),
+                               (friction, variation.friction_scale)):
+        assert low <= min(drawn) and max(drawn) <= high
+        assert math.log(max(drawn) / min(drawn)) > 0.6 * math.log(high / low)  # spread out
+    # A wire without a secondary curve keeps none.
+    assert variation.draw(wires.preset("stiff"), 3).secondary_angle == 0.0
+
+
+def test_the_coronary_domain_gives_each_tree_its_own_unit_of_the_wire(tmp_path: Path) -> None:
+    from sim4endor.models.constants import wire_geom
+
+    def wire_friction(kwargs: dict[str, object]) -> float:
+        env = suite.load("coronary", "navigate", kwargs)
+        env.reset()
+        model = env.task.anatomy.model
+        return float(model.geom(wire_geom(0)).friction[0])
+
+    kwargs = {"random": 0, "pool_size": 1, "pool_seed": 2, "cache_dir": tmp_path}
+    plain = wire_friction(kwargs)
+    varied = wire_friction({**kwargs, "vary_wire": True})
+    unit = wires.WireVariation.catalogue().draw(wires.resolve(coronary.DEFAULT_WIRE), 2)
+    assert plain == pytest.approx(wires.resolve(coronary.DEFAULT_WIRE).friction)
+    assert varied == pytest.approx(unit.friction) and varied != pytest.approx(plain)
+    with pytest.raises(TaskConfigError, match="vary_wire must be true or false, got 'yes'"):
+        suite.load("coronary", "navigate", {**kwargs, "vary_wire": "yes"})
+    with pytest.raises(TaskConfigError, match="vary_wire gives each tree its own wire"):
+        coronary.pool(1, 2, cache_dir=tmp_path, same_wire=True, vary_wire=True)

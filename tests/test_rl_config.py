@@ -147,3 +147,16 @@ def test_sac_starts_at_the_configured_entropy_temperature() -> None:
 def test_demonstrations_need_a_replay_buffer() -> None:
     with pytest.raises(ConfigError, match="PPO learns on-policy"):
         apply_overrides(default_config("ppo"), ["demonstrations.episodes=3"])
+
+
+def test_a_recipe_source_of_varied_wires_reaches_the_coronary_task() -> None:
+    from sim4endor.rl.recipe import Source
+
+    policy = load_config(EXPERIMENTS / "generalist" / "config.yaml").env
+    env = Source(domain="coronary", vary_wire=True).env(policy)
+    assert env.task_kwargs(0)["vary_wire"] is True
+    assert "vary_wire" not in Source(domain="coronary").env(policy).task_kwargs(0)
+    varied = apply_overrides(default_config("sac"), ["env.domain=coronary", "env.vary_wire=true"])
+    assert Source(domain="random_coronary").env(varied.env).vary_wire is None
+    with pytest.raises(ConfigError, match="vary_wire draws a wire per coronary tree"):
+        apply_overrides(default_config("sac"), ["env.vary_wire=true"])

@@ -212,6 +212,68 @@ def _entry(name: str, raw: Mapping[str, Any], materials: Mapping[str, Any]) -> W
     )
 
 
+@dataclass(frozen=True)
+class WireVariation:
+    """How one unit of a preset differs from the next (``wires.toml``'s ``[variation]``,
+    with the sources of its ranges): a draw scales the wire's moduli (its tip load) and
+    friction, and moves its tip shape, each seed giving one unit.
+
+    Attributes:
+        stiffness_scale: Range of the factor on the Young's and shear moduli (log-uniform).
+        friction_scale: Range of the factor on the friction coefficient (log-uniform).
+        tip_length: Largest change of the shaped tip's length (m, uniform ±).
+        tip_angle: Largest change of its bend (rad, uniform ±).
+        secondary_angle: Largest change of a secondary curve's bend (rad, uniform ±).
+    """
+
+    stiffness_scale: tuple[float, float]
+    friction_scale: tuple[float, float]
+    tip_length: float
+    tip_angle: float
+    secondary_angle: float
+
+    @classmethod
+    def catalogue(cls) -> WireVariation:
+        """The catalogue's ranges."""
+        raw = _data()["variation"]
+        return cls(tuple(raw["stiffness_scale"]), tuple(raw["friction_scale"]),
+                   raw["tip_length_mm"] * _MM, math.radians(raw["tip_angle_deg"]),
+                   math.radians(raw["secondary_angle_deg"]))
+
+    def draw(self, wire: GuidewireConfig, seed: int) -> GuidewireConfig:
+        """The unit of ``wire`` that ``seed`` draws (the same seed, the same unit), its tip
+        kept within :class:`TipShape`'s ranges."""
+        import numpy as np
+
+        rng = np.random.default_rng([seed, _VARIATION_STREAM])
+        stiffness, friction = (math.exp(rng.uniform(math.log(low), math.log(high)))
+                               for low, high in (self.stiffness_scale, self.friction_scale))
+        length = _clipped(wire.tip_length + rng.uniform(-1, 1) * self.tip_length,
+                          SHAPE_LENGTH_RANGE)
+        angle = _clipped(wire.tip_angle + rng.uniform(-1, 1) * self.tip_angle,
+                         SHAPE_ANGLE_RANGE)
+        secondary = rng.uniform(-1, 1) * self.secondary_angle
+        secondary_distance = wire.secondary_distance
+        if wire.secondary_angle:
+            secondary = _clipped(wire.secondary_angle + secondary, SECONDARY_ANGLE_RANGE)
+            # The secondary curve stays behind the tip, however long the tip is drawn.
+            secondary_distance = max(secondary_distance, length + SECONDARY_CURVE_LENGTH / 2)
+        return dataclasses.replace(
+            wire, youngs_modulus=wire.youngs_modulus * stiffness,
+            shear_modulus=wire.shear_modulus * stiffness, friction=wire.friction * friction,
+            tip_length=length, tip_angle=angle,
+            secondary_angle=secondary if wire.secondary_angle else 0.0,
+            secondary_distance=secondary_distance)
+
+
+#: The seed stream of :meth:`WireVariation.draw`, apart from the tree's own draws.
+_VARIATION_STREAM = 83
+
+
+def _clipped(value: float, bounds: tuple[float, float]) -> float:
+    return min(max(value, bounds[0]), bounds[1])
+
+
 def names() -> tuple[str, ...]:
     """Returns the preset names, ``paper`` first."""
     return tuple(_catalogue())

@@ -108,6 +108,9 @@ class EnvConfig:
             evaluate on the training trees).
         anatomy: domain ``coronary``: ``normal`` or ``wide`` trees
             (:data:`sim4endor.tasks.coronary.Anatomies`; ``None``: normal).
+        vary_wire: domain ``coronary``: each tree its own unit of the wire (stiffness,
+            friction and tip shape drawn within
+            :class:`sim4endor.models.wires.WireVariation`'s ranges; ``None``: the one wire).
         target_weights: domain ``coronary``, training only: relative weights of drawing each
             target label, e.g. ``{AM: 3, RV: 3}`` (others 1), a curriculum that trains more on
             the branches a policy misses; evaluations keep drawing targets uniformly, so
@@ -129,6 +132,7 @@ class EnvConfig:
     pool_size: int | None = None
     eval_pool_seed: int | None = None
     anatomy: str | None = None
+    vary_wire: bool | None = None
     target_weights: dict[str, float] | None = None
 
     def __post_init__(self) -> None:
@@ -154,6 +158,9 @@ class EnvConfig:
                 wires.resolve(self.wire_setting(), self.fidelity)
             except Sim4EndoRError as exc:
                 raise ConfigError(f"env.wire / env.tip / env.fidelity: {exc}") from None
+        if self.vary_wire is not None and self.domain != "coronary":
+            raise ConfigError(f"env.vary_wire draws a wire per coronary tree; domain "
+                              f"{self.domain!r} has no pool of them.")
         if self.anatomy is not None and self.domain != "coronary":
             raise ConfigError(f"env.anatomy chooses the coronary domain's trees; domain "
                               f"{self.domain!r} has none.")
@@ -209,7 +216,7 @@ class EnvConfig:
             else self.pool_seed
         given = {"vessel": self.vessel, "target": self.target, "wire": self.wire_setting(),
                  "fidelity": self.fidelity, "pool_seed": pool_seed, "pool_size": self.pool_size,
-                 "anatomy": self.anatomy,
+                 "anatomy": self.anatomy, "vary_wire": self.vary_wire,
                  "target_weights": None if evaluation else self.target_weights}
         kwargs.update({key: value for key, value in given.items() if value is not None})
         return kwargs

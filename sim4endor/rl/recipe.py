@@ -85,6 +85,8 @@ class Source:
         pool_size: number of trees (``None``: the policy's own).
         anatomy: domain ``coronary``: ``normal`` or ``wide`` trees (``EnvConfig.anatomy``;
             ``None``: the policy's own).
+        vary_wire: domain ``coronary``: each tree its own unit of the wire
+            (``EnvConfig.vary_wire``; ``None``: the policy's own).
     """
 
     domain: str = "coronary"
@@ -92,6 +94,7 @@ class Source:
     pool_seed: int | None = None
     pool_size: int | None = None
     anatomy: str | None = None
+    vary_wire: bool | None = None
 
     def __post_init__(self) -> None:
         require(self, "source", ConfigError, positive=("episodes",))
@@ -101,7 +104,8 @@ class Source:
         fields: dict[str, Any] = {"domain": self.domain}
         fields.update({k: v for k, v in (("pool_seed", self.pool_seed),
                                           ("pool_size", self.pool_size),
-                                          ("anatomy", self.anatomy)) if v is not None})
+                                          ("anatomy", self.anatomy),
+                                          ("vary_wire", self.vary_wire)) if v is not None})
         return dataclasses.replace(evaluation_env(policy, fields), num_envs=1)
 
 

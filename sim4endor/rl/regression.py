@@ -12,7 +12,7 @@ of the reference's. Per group (``GROUPS``) the verdict compares:
 
 With one episode in a group the standard error is 0, so any drop in SPL or rise in tip force
 counts. A candidate may replace the reference only when no group is worse (``ships``).
-Episodes run in ``jobs`` spawned processes, each a shard of one policy's cases.
+Episodes run in ``jobs`` spawned processes, each task a few cases of one policy.
 """
 
 from __future__ import annotations
@@ -33,6 +33,8 @@ from sim4endor.rl.metrics import Episode, largest_tip_force, path_length, spl_te
 
 #: A paired difference counts when it is this many standard errors from zero.
 STANDARD_ERRORS = 2.0
+#: Cases a worker runs per task.
+CHUNK_CASES = 8
 
 
 @dataclasses.dataclass(frozen=True)
@@ -183,31 +185,42 @@ def _episodes(policies: Sequence[Path], names: Sequence[str],
               cases: Mapping[str, Sequence[generalisation.Case]],
               config: generalisation.SuiteConfig, jobs: int, progress: bool
               ) -> dict[str, dict[str, list[Episode]]]:
-    """Each policy's episodes per case label; ``jobs`` processes run shards of the cases."""
-    shards = [(path, name, tuple(cases[name][i::jobs]))
-              for path, name in zip(policies, names, strict=True) for i in range(jobs)]
-    shards = [shard for shard in shards if shard[2]]
+    """Each policy's episodes per case label; ``jobs`` processes run chunks of
+    :data:`CHUNK_CASES` cases (small enough for the bar to move and the load to balance)."""
+    chunks = [(path, name, tuple(cases[name][i:i + CHUNK_CASES]))
+              for path, name in zip(policies, names, strict=True)
+              for i in range(0, len(cases[name]), CHUNK_CASES)]
     out: dict[str, dict[str, list[Episode]]] = {name: {} for name in names}
-    if jobs == 1:
-        for path, name, shard in shards:
-            out[name].update(_run_shard(path, name, shard, config, progress))
-        return out
-    context = multiprocessing.get_context("spawn")  # CoACD's OpenMP in the builds: never fork
-    with concurrent.futures.ProcessPoolExecutor(jobs, mp_context=context) as pool:
-        futures = {pool.submit(_run_shard, path, name, shard, config, False): name
-                   for path, name, shard in shards}
-        for future in tqdm(concurrent.futures.as_completed(futures), total=len(futures),
-                           desc="regression", unit="shard", disable=not progress):
-            out[futures[future]].update(future.result())
+    bar = tqdm(total=sum(len(chunk) for *_, chunk in chunks), desc="regression", unit="case",
+               disable=not progress)
+    with bar:
+        if jobs == 1:
+            for path, name, chunk in chunks:
+                out[name].update(_run_chunk(path, chunk, config))
+                bar.update(len(chunk))
+            return out
+        context = multiprocessing.get_context("spawn")  # CoACD's OpenMP in builds: never fork
+        with concurrent.futures.ProcessPoolExecutor(jobs, mp_context=context) as pool:
+            futures = {pool.submit(_run_chunk, path, chunk, config): (name, len(chunk))
+                       for path, name, chunk in chunks}
+            for future in concurrent.futures.as_completed(futures):
+                name, size = futures[future]
+                out[name].update(future.result())
+                bar.update(size)
     return out
 
 
-def _run_shard(path: Path, name: str, cases: Sequence[generalisation.Case],
-               config: generalisation.SuiteConfig, progress: bool) -> dict[str, list[Episode]]:
-    """One policy's episodes on some of its cases (a worker's task)."""
-    envs = generalisation.CaseEnvironments()
-    try:
-        return generalisation.run_cases(cases, generalisation.run_actor(path), config, envs,
-                                        label=name, progress=progress)
-    finally:
-        envs.close()
+def _run_chunk(path: Path, cases: Sequence[generalisation.Case],
+               config: generalisation.SuiteConfig) -> dict[str, list[Episode]]:
+    """One policy's episodes on some of its cases (a worker's task). Each case's environment
+    is closed once its episodes are run: no other policy of this process meets it, and a
+    coronary scene holds tens of MB."""
+    actor = generalisation.run_actor(path)
+    out = {}
+    for case in cases:
+        envs = generalisation.CaseEnvironments()
+        try:
+            out.update(generalisation.run_cases([case], actor, config, envs))
+        finally:
+            envs.close()
+    return out

@@ -123,7 +123,8 @@ def read_evaluation(run_dir: Path) -> dict[str, Any] | None:
 
 
 #: The run's anatomy settings: they name trees or a vessel of the run's own domain.
-_ANATOMY_FIELDS = ("vessel", "target", "pool_seed", "pool_size", "eval_pool_seed", "anatomy")
+_ANATOMY_FIELDS = ("vessel", "target", "pool_seed", "pool_size", "eval_pool_seed", "anatomy",
+                   "vary_wire")
 
 
 def evaluation_env(run_env: EnvConfig, task_arguments: Mapping[str, Any]) -> EnvConfig:

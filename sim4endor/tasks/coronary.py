@@ -140,11 +140,14 @@ def scene_for(base: SceneConfig | None, same_wire: bool = False,
 
 
 def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig,
-                 same_wire: bool = False, anatomy: Anatomies = "normal") -> Anatomy:
+                 same_wire: bool = False, anatomy: Anatomies = "normal",
+                 vary_wire: bool = False) -> Anatomy:
     """Generates the tree of ``seed``, builds it once (cached on disk) and compiles it with
     ``scene``, its travel fitted to the tree's deepest target and its shaft segments to the
     bends and junctions the wire can reach (:func:`~sim4endor.models.scene.config_for_vessel`)
-    unless ``same_wire``."""
+    unless ``same_wire``; with ``vary_wire`` the tree's own unit of the scene's wire
+    (:class:`~sim4endor.models.wires.WireVariation`, drawn from ``seed``), its tip narrowed
+    to the guide catheter's bore again."""
     from sim4endor.vessels.build import BuildParams
     from sim4endor.vessels.generators.coronary_arteries import coronary_arteries
     from sim4endor.vessels.walls import WallParams
@@ -155,6 +158,10 @@ def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig,
     name = tree_name(seed, side, anatomy)
     folder = cached_build(coronary_arteries(config, seed=seed), name, cache_dir, config,
                           params)
+    if vary_wire:
+        unit = wires.WireVariation.catalogue().draw(scene.wire, seed)
+        scene = dataclasses.replace(scene, wire=fit_tip(
+            unit, config.catheter_radius, SOFT_TIP_FILL, where="a coronary tree's guide catheter"))
     return compile_anatomy(folder, scene, fit="none" if same_wire else "all")
 
 
@@ -167,7 +174,7 @@ def tree_name(seed: int, side: Sides, anatomy: Anatomies = "normal") -> str:
 def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = None,
          scene: SceneConfig | None = None, target: str | None = None,
          same_wire: bool = False, target_weights: Mapping[str, float] | None = None,
-         anatomy: Anatomies = "normal") -> AnatomyPool:
+         anatomy: Anatomies = "normal", vary_wire: bool = False) -> AnatomyPool:
     """Returns the lazily built pool of ``size`` trees with seeds ``seed ... seed + size - 1``.
 
     Args:
@@ -184,15 +191,27 @@ def pool(size: int, seed: int, side: Sides = "both", cache_dir: Path | None = No
         target_weights: Draw targets by these relative weights per label (others 1), e.g.
             ``{"AM": 3, "RV": 3}`` (:class:`~sim4endor.tasks.anatomy.AnatomyPool`).
         anatomy: ``normal`` or ``wide`` (:data:`Anatomies`).
+        vary_wire: Give each tree its own unit of the wire (:func:`build_member`): stiffness,
+            friction and tip shape drawn within the catalogue's ranges, for training a
+            policy that must not rely on one unit's response.
+
+    Raises:
+        TaskConfigError: For a bad side or anatomy, or ``vary_wire`` with ``same_wire``.
     """
     if side not in ("left", "right", "both"):
         raise TaskConfigError(f"task_kwargs side must be 'left', 'right' or 'both', got {side!r}.")
     generator_config(seed, side, anatomy)  # refuses an unknown anatomy before any build
+    if not isinstance(vary_wire, bool):
+        raise TaskConfigError(f"task_kwargs vary_wire must be true or false, got {vary_wire!r}.")
+    if vary_wire and same_wire:
+        raise TaskConfigError("task_kwargs vary_wire gives each tree its own wire, which the "
+                              "wire_shape observation's one wire for every tree cannot be; "
+                              "leave one of them out.")
     folder = cache_dir or default_cache_dir()
     fitted = scene_for(scene, same_wire, anatomy)
     return AnatomyPool(
         [functools.partial(build_member, seed + k, folder, side, fitted, same_wire,
-                           anatomy=anatomy)
+                           anatomy=anatomy, vary_wire=vary_wire)
          for k in range(size)],
         target=target,
         target_weights=target_weights,
