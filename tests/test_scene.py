@@ -262,3 +262,42 @@ def test_config_for_vessel_keeps_the_phantoms_segments() -> None:
             fitted = scene.config_for_vessel(vessel, scene.SceneConfig(wire=wire)).wire
             assert fitted.max_segment_length == wire.max_segment_length, name
             assert fitted.segment_limits is None, name
+
+
+def _bent_inlet(straight: float, radius: float = 1.1e-3) -> object:
+    """A vessel's inlet: ``straight`` m along +x, then a 90° turn of 6 mm axis radius."""
+    from types import SimpleNamespace
+
+    arc = np.linspace(0.0, math.pi / 2, 40)
+    bend = np.stack([straight + 6e-3 * np.sin(arc), 6e-3 * (1 - np.cos(arc)), 0 * arc], 1)
+    nodes = np.vstack([np.array([[0.0, 0.0, 0.0]]), bend])
+    graph = CenterlineGraph(nodes=nodes, radii=np.full(len(nodes), radius),
+                            edges=np.stack([np.arange(len(nodes) - 1),
+                                            np.arange(1, len(nodes))], 1),
+                            labels={"inlet": 0})
+    return SimpleNamespace(centerline=graph, inlet_position=np.zeros(3),
+                           inlet_direction=np.array([1.0, 0.0, 0.0]))
+
+
+def test_the_start_protrusion_is_cut_where_the_vessel_bends_away_within_it() -> None:
+    base = scene.SceneConfig(wire=wires.resolve({"preset": "workhorse", "tip": "3,75"}))
+    default = base.driver.initial_protrusion
+    # Straight for 20 mm: the default 8 mm.
+    assert scene.fit_protrusion(_bent_inlet(0.02), base) == base
+    # Bending after 2 mm: the straight wire would reach the wall about 3 mm later.
+    cut = scene.fit_protrusion(_bent_inlet(0.002), base).driver.initial_protrusion
+    assert base.wire.tip_length < cut < default
+    for s in np.linspace(0.0, cut, 20):  # the whole protrusion keeps its clearance
+        point = np.array([base.driver.sheath_overlap + s, 0.0, 0.0])
+        excess = _bent_inlet(0.002).centerline.tube_excess(point)
+        assert excess + base.wire.radius <= -scene.START_CLEARANCE + 1e-9
+    # Bending at once: never shorter than the shaped tip needs to start free of the sheath.
+    tight = scene.fit_protrusion(_bent_inlet(0.0, radius=0.4e-3), base).driver
+    assert tight.initial_protrusion == pytest.approx(base.wire.tip_length + 5e-4)
+    tight.check_wire(base.wire.length, base.wire.radius, base.wire.tip_length)
+    # The shipped phantoms' straight inlets keep it.
+    for name in ("simplified_phantom", "vascular_phantom"):
+        from sim4endor import vessels
+
+        fitted = scene.config_for_vessel(vessels.load(name), base)
+        assert fitted.driver.initial_protrusion == default
