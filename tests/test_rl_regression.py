@@ -119,3 +119,16 @@ def test_the_suite_table_names_each_unreachable_real_target() -> None:
     assert "the policy reaches 1 of the 1 targets (of 2) the probing expert reaches" in text
     assert "- unreachable: p T2: timeout; lumen 0.24 mm across" in text
     assert "p T1" not in text
+
+
+@pytest.mark.slow
+def test_processes_give_the_same_verdict_as_one(tmp_path: Path) -> None:
+    """Chunks of cases in spawned workers: the same episodes as in this process."""
+    require_vessel("simplified_phantom")
+    require_vessel("vascular_phantom")
+    shipped = assets.run_or_policy("generalist")
+    copy = shutil.copytree(shipped, tmp_path / "copy")
+    config = SuiteConfig(trees=0, wide_trees=0, implicit_trees=0, steve_dir=None, max_steps=8)
+    alone = regression.regression([copy], shipped, config)
+    spread = regression.regression([copy], shipped, config, jobs=2)
+    assert spread["rows"] == alone["rows"] and spread["outcomes"] == alone["outcomes"]
