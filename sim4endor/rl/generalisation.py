@@ -343,8 +343,7 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
         if with_baselines:
             rows.update(reference_rows(config, train_config.env.observations, cases, envs,
                                        progress))
-        real = [case for case in cases if case.group == "real"]
-        reach = reachability.probe(real, config, envs, progress) if real else {}
+        reach = probe_real(cases, config, envs, progress)
     finally:
         envs.close()
     targets = {label: summarize(runs)["success_rate"] for label, runs in episodes.items()}
@@ -355,6 +354,21 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
                       real_reachable={"successes": reached, "reachable": reachable,
                                       "targets": len(reach)})
     return result
+
+
+def probe_real(cases: Sequence[Case], config: SuiteConfig, envs: CaseEnvironments,
+               progress: bool = False) -> dict[str, reachability.Reach]:
+    """The probing expert's :class:`~sim4endor.rl.reachability.Reach` on each ``real``
+    case (one episode each)."""
+    real = [case for case in cases if case.group == "real"]
+    if not real:
+        return {}
+    expert = baselines.ScriptedExpert(probing=True)
+    episodes = run_cases(real, functools.partial(_baseline_actor, expert),
+                         dataclasses.replace(config, trials=1), envs, label=expert.label,
+                         progress=progress)
+    return {case.label: reachability.reach_of(episodes[case.label][0], str(case.env.vessel),
+                                              str(case.env.target)) for case in real}
 
 
 def evaluate_vessel(policy: Path | baselines.Baseline, vessel: str | Path, config: SuiteConfig,

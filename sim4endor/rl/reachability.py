@@ -12,17 +12,13 @@ against what the wire can do instead of being dropped silently.
 from __future__ import annotations
 
 import dataclasses
-import functools
-from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
 
 from sim4endor import vessels
-from sim4endor.rl import baselines
-from sim4endor.rl.metrics import largest_tip_force
+from sim4endor.rl.metrics import Episode, largest_tip_force
 from sim4endor.tasks.tip_frame import PathToTarget
-
-if TYPE_CHECKING:
-    from sim4endor.rl.generalisation import Case, CaseEnvironments, SuiteConfig
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,23 +59,11 @@ def route_calibre(vessel: vessels.Vessel, target: str) -> tuple[float, float]:
     return float(graph.radii[graph.labels[target]]), float(graph.radii[route].min())
 
 
-def probe(cases: Sequence[Case], config: SuiteConfig, envs: CaseEnvironments,
-          progress: bool = False) -> dict[str, Reach]:
-    """The probing expert's :class:`Reach` on each vessel-folder case (one episode each)."""
-    from sim4endor.rl.generalisation import run_cases
-
-    expert = baselines.ScriptedExpert(probing=True)
-    episodes = run_cases(cases, functools.partial(baselines.policy, expert),
-                         dataclasses.replace(config, trials=1), envs, label=expert.label,
-                         progress=progress)
-    reach = {}
-    for case in cases:
-        episode, = episodes[case.label]
-        at_target, narrowest = route_calibre(vessels.load(str(case.env.vessel)),
-                                             str(case.env.target))
-        reach[case.label] = Reach(episode.outcome, at_target, narrowest,
-                                  largest_tip_force(episode))
-    return reach
+def reach_of(episode: Episode, vessel: str | Path, target: str) -> Reach:
+    """The :class:`Reach` of the probing expert's ``episode`` on ``target`` of a vessel
+    folder."""
+    at_target, narrowest = route_calibre(vessels.load(vessel), target)
+    return Reach(episode.outcome, at_target, narrowest, largest_tip_force(episode))
 
 
 def reachable_successes(reach: Mapping[str, Reach], targets: Mapping[str, Any]
