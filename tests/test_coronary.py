@@ -493,8 +493,12 @@ def test_a_wire_variation_draws_one_unit_per_seed_within_its_ranges() -> None:
                                (friction, variation.friction_scale)):
         assert low <= min(drawn) and max(drawn) <= high
         assert math.log(max(drawn) / min(drawn)) > 0.6 * math.log(high / low)  # spread out
-    # A wire without a secondary curve keeps none.
+    # A wire without a secondary curve keeps none, and a J stays a J.
     assert variation.draw(wires.preset("stiff"), 3).secondary_angle == 0.0
+    j_tip = wires.shaped(wire, "J")
+    drawn = variation.draw(j_tip, 3)
+    assert (drawn.tip_length, drawn.tip_angle) == (j_tip.tip_length, j_tip.tip_angle)
+    assert drawn.friction != j_tip.friction
 
 
 def test_the_coronary_domain_gives_each_tree_its_own_unit_of_the_wire(tmp_path: Path) -> None:

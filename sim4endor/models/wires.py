@@ -242,12 +242,18 @@ class WireVariation:
 
     def draw(self, wire: GuidewireConfig, seed: int) -> GuidewireConfig:
         """The unit of ``wire`` that ``seed`` draws (the same seed, the same unit), its tip
-        kept within :class:`TipShape`'s ranges."""
+        kept within :class:`TipShape`'s ranges; a tip outside them (a J) keeps its shape."""
         import numpy as np
 
         rng = np.random.default_rng([seed, _VARIATION_STREAM])
         stiffness, friction = (math.exp(rng.uniform(math.log(low), math.log(high)))
                                for low, high in (self.stiffness_scale, self.friction_scale))
+        scaled = dataclasses.replace(
+            wire, youngs_modulus=wire.youngs_modulus * stiffness,
+            shear_modulus=wire.shear_modulus * stiffness, friction=wire.friction * friction)
+        low, high = SHAPE_ANGLE_RANGE
+        if not low <= wire.tip_angle <= high:
+            return scaled
         length = _clipped(wire.tip_length + rng.uniform(-1, 1) * self.tip_length,
                           SHAPE_LENGTH_RANGE)
         angle = _clipped(wire.tip_angle + rng.uniform(-1, 1) * self.tip_angle,
@@ -259,9 +265,7 @@ class WireVariation:
             # The secondary curve stays behind the tip, however long the tip is drawn.
             secondary_distance = max(secondary_distance, length + SECONDARY_CURVE_LENGTH / 2)
         return dataclasses.replace(
-            wire, youngs_modulus=wire.youngs_modulus * stiffness,
-            shear_modulus=wire.shear_modulus * stiffness, friction=wire.friction * friction,
-            tip_length=length, tip_angle=angle,
+            scaled, tip_length=length, tip_angle=angle,
             secondary_angle=secondary if wire.secondary_angle else 0.0,
             secondary_distance=secondary_distance)
 
