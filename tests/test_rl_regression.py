@@ -74,14 +74,24 @@ def test_two_real_folders_of_one_vessel_are_refused() -> None:
         suite_cases(config, "generalist")
 
 
-def test_the_shipped_policy_against_a_copy_of_itself_differs_nowhere(tmp_path: Path) -> None:
-    """Episodes are deterministic, and both policies meet the same cases: every paired
-    difference is exactly zero, so the copy ships."""
+@pytest.fixture
+def shipped_and_copy(tmp_path: Path) -> tuple[Path, Path, SuiteConfig]:
+    """The shipped policy, a copy of it under another name, and a suite of the phantoms'
+    four targets cut to 8 steps an episode."""
     require_vessel("simplified_phantom")
     require_vessel("vascular_phantom")
     shipped = assets.run_or_policy("generalist")
     copy = shutil.copytree(shipped, tmp_path / "copy")
-    config = SuiteConfig(trees=0, wide_trees=0, implicit_trees=0, steve_dir=None, max_steps=8)
+    return shipped, copy, SuiteConfig(trees=0, wide_trees=0, implicit_trees=0, steve_dir=None,
+                                      max_steps=8)
+
+
+def test_the_shipped_policy_against_a_copy_of_itself_differs_nowhere(
+    shipped_and_copy: tuple[Path, Path, SuiteConfig]
+) -> None:
+    """Episodes are deterministic, and both policies meet the same cases: every paired
+    difference is exactly zero, so the copy ships."""
+    shipped, copy, config = shipped_and_copy
     result = regression.regression([copy], shipped, config)
     verdict, = result["verdicts"]["copy"]
     assert (verdict.group, verdict.episodes) == ("phantoms", 4)
@@ -122,13 +132,11 @@ def test_the_suite_table_names_each_unreachable_real_target() -> None:
 
 
 @pytest.mark.slow
-def test_processes_give_the_same_verdict_as_one(tmp_path: Path) -> None:
+def test_processes_give_the_same_verdict_as_one(
+    shipped_and_copy: tuple[Path, Path, SuiteConfig]
+) -> None:
     """Chunks of cases in spawned workers: the same episodes as in this process."""
-    require_vessel("simplified_phantom")
-    require_vessel("vascular_phantom")
-    shipped = assets.run_or_policy("generalist")
-    copy = shutil.copytree(shipped, tmp_path / "copy")
-    config = SuiteConfig(trees=0, wide_trees=0, implicit_trees=0, steve_dir=None, max_steps=8)
+    shipped, copy, config = shipped_and_copy
     alone = regression.regression([copy], shipped, config)
     spread = regression.regression([copy], shipped, config, jobs=2)
     assert spread["rows"] == alone["rows"] and spread["outcomes"] == alone["outcomes"]

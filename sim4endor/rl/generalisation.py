@@ -174,12 +174,9 @@ def suite_cases(config: SuiteConfig, observations: str) -> list[Case]:
     return cases
 
 
-def policy_cases(run_dir: Path, config: SuiteConfig) -> list[Case]:
-    """The suite's cases for a run's policy: its observation set, and its tip shape where
-    ``config`` names none (:meth:`SuiteConfig.for_run`)."""
-    from sim4endor.rl.runs import run_config
-
-    run_env = run_config(run_dir).env
+def policy_cases(run_env: EnvConfig, config: SuiteConfig) -> list[Case]:
+    """The suite's cases for a run's policy (its ``config.yaml``'s ``env``): its observation
+    set, and its tip shape where ``config`` names none (:meth:`SuiteConfig.for_run`)."""
     return suite_cases(config.for_run(run_env), run_env.observations)
 
 
@@ -334,7 +331,7 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
 
     train_config = run_config(run_dir)
     config = config.for_run(train_config.env)
-    cases = policy_cases(run_dir, config)
+    cases = policy_cases(train_config.env, config)
     envs = CaseEnvironments()
     try:
         episodes = run_cases(cases, run_actor(run_dir), config, envs,

@@ -98,6 +98,11 @@ def spl_term(success: bool, shortest: float, travelled: float) -> float:
     return 1.0 if longest <= 0.0 else shortest / longest
 
 
+def episode_spl(episode: Episode) -> float:
+    """One episode's SPL term (:func:`spl_term` of its travelled path)."""
+    return spl_term(episode.success, episode.shortest_path_m, path_length(episode.tip_positions))
+
+
 def largest_tip_force(episode: Episode) -> float:
     """One episode's largest finite step-mean tip force in N (0 when none was recorded)."""
     return _largest_finite([episode.tip_forces])
@@ -113,14 +118,7 @@ def summarize(episodes: Sequence[Episode]) -> dict[str, float | int | dict[str, 
         "success_rate": float(np.mean([e.success for e in episodes])),
         "mean_completion_time_s": float(np.mean(times)) if times else None,
         "mean_path_length_m": float(np.mean(lengths)),
-        "spl": float(
-            np.mean(
-                [
-                    spl_term(e.success, e.shortest_path_m, p)
-                    for e, p in zip(episodes, lengths, strict=True)
-                ]
-            )
-        ),
+        "spl": float(np.mean([episode_spl(e) for e in episodes])),
         "max_wall_force_n": _largest_finite([e.wall_forces for e in episodes]),
         "max_tip_force_n": _largest_finite([e.tip_forces for e in episodes]),
         "mean_return": float(np.mean([e.episode_return for e in episodes])),

@@ -29,7 +29,8 @@ from tqdm.auto import tqdm
 
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.rl import generalisation
-from sim4endor.rl.metrics import Episode, largest_tip_force, path_length, spl_term
+from sim4endor.rl.metrics import Episode, episode_spl, largest_tip_force
+from sim4endor.rl.runs import run_config
 
 #: A paired difference counts when it is this many standard errors from zero.
 STANDARD_ERRORS = 2.0
@@ -53,11 +54,11 @@ class Paired:
 
     def below(self) -> bool:
         """The candidate is lower beyond the trial noise."""
-        return self.mean < -STANDARD_ERRORS * self.standard_error and self.mean < 0.0
+        return self.mean < -STANDARD_ERRORS * self.standard_error
 
     def above(self) -> bool:
         """The candidate is higher beyond the trial noise."""
-        return self.mean > STANDARD_ERRORS * self.standard_error and self.mean > 0.0
+        return self.mean > STANDARD_ERRORS * self.standard_error
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,11 +79,6 @@ class GroupVerdict:
             ("successes", self.successes < self.reference_successes),
             ("spl", self.spl.below()),
             ("tip_force", self.tip_force_n.above())) if is_worse)
-
-
-def episode_spl(episode: Episode) -> float:
-    """One episode's SPL term."""
-    return spl_term(episode.success, episode.shortest_path_m, path_length(episode.tip_positions))
 
 
 def compare(groups: Mapping[str, str], candidate: Mapping[str, Sequence[Episode]],
@@ -132,7 +128,7 @@ def regression(candidates: Sequence[Path], reference: Path,
     if len(set(names)) != len(names):
         raise Sim4EndoRError(f"The policies compared need distinct names, got {names}; give "
                              "each run folder (or the folder above policy/) its own name.")
-    cases = {name: generalisation.policy_cases(path, config)
+    cases = {name: generalisation.policy_cases(run_config(path).env, config)
              for name, path in zip(names, policies, strict=True)}
     # The labels come from the config alone; a policy's cases differ only in its observation
     # set and trained tip, which it is judged with.

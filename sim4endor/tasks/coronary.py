@@ -40,6 +40,7 @@ from sim4endor.tasks.anatomy import default_cache_dir as anatomy_cache_dir
 from sim4endor.tasks.config import TaskConfigError, TerminationConfig
 
 if TYPE_CHECKING:
+    from sim4endor.models.guidewire import GuidewireConfig
     from sim4endor.vessels.generators.coronary_arteries import CoronaryArteriesConfig
 
 #: Pool members when ``task_kwargs`` does not say.
@@ -124,8 +125,7 @@ def scene_for(base: SceneConfig | None, same_wire: bool = False,
     if anatomy == "wide":
         generator = dataclasses.replace(
             generator, min_diameter=AnatomyVariation().min_diameter)
-    wire = fit_tip(scene.wire, generator.catheter_radius, SOFT_TIP_FILL,
-                   where="a coronary tree's guide catheter")
+    wire = _fit_to_catheter(scene.wire, generator)
     if not same_wire:
         return dataclasses.replace(scene, wire=wire)
     # The tightest bend: the narrowest lumen at the largest curvature the generator allows
@@ -160,9 +160,15 @@ def build_member(seed: int, cache_dir: Path, side: Sides, scene: SceneConfig,
                           params)
     if vary_wire:
         unit = wires.WireVariation.catalogue().draw(scene.wire, seed)
-        scene = dataclasses.replace(scene, wire=fit_tip(
-            unit, config.catheter_radius, SOFT_TIP_FILL, where="a coronary tree's guide catheter"))
+        scene = dataclasses.replace(scene, wire=_fit_to_catheter(unit, config))
     return compile_anatomy(folder, scene, fit="none" if same_wire else "all")
+
+
+def _fit_to_catheter(wire: GuidewireConfig, generator: CoronaryArteriesConfig
+                     ) -> GuidewireConfig:
+    """``wire`` with a tip wider than the generator's guide catheter allows narrowed to it."""
+    return fit_tip(wire, generator.catheter_radius, SOFT_TIP_FILL,
+                   where="a coronary tree's guide catheter")
 
 
 def tree_name(seed: int, side: Sides, anatomy: Anatomies = "normal") -> str:
