@@ -33,6 +33,13 @@ FORCE_HORIZON = 5.0
 #: policy cannot tell a first attempt at a side branch from its tenth.
 STALL_PROGRESS = 0.001
 STALL_HORIZON = 5.0
+#: Points of the ``tracked_wire`` entry behind the tracked tip, and their spacing along the
+#: wire's image (m): 4 x 2.5 mm covers the shaped tip (2-3 mm) and the shaft behind it, whose
+#: bend in the image shows which way the tip points.
+TRACKED_POINTS = 4
+TRACKED_SPACING = 0.0025
+#: The ``tracking_age`` entries saturate here (s): ten pulses at 15 per second.
+TRACKING_HORIZON = 0.7
 
 #: Observation entries every task returns: the paper's state s_t = [p_t, v_t].
 DEFAULT_OBSERVATIONS: tuple[str, ...] = ("tip_position", "tip_velocity")
@@ -52,7 +59,38 @@ OPTIONAL_OBSERVATIONS: tuple[str, ...] = (
     "tip_force",
     "wall_force",
     "stall_time",
+    "tracked_wire",
+    "roadmap_offset",
+    "roadmap_ahead",
+    "roadmap_remaining",
+    "roadmap_stall",
+    "tracking_age",
+    "proximal_force",
+    "tracked_wire_b",
+    "roadmap_offset_b",
+    "roadmap_ahead_b",
+    "tracking_age_b",
 )
+#: Entries computed by the cath lab's sensor model (:mod:`sim4endor.tasks.cathlab`) from the
+#: fluoroscopic image, the preoperative roadmap and the driver's load cell.
+CATHLAB_OBSERVATIONS: tuple[str, ...] = (
+    "tracked_wire",
+    "roadmap_offset",
+    "roadmap_ahead",
+    "roadmap_remaining",
+    "roadmap_stall",
+    "tracking_age",
+    "proximal_force",
+)
+#: The second plane's entries, observed when the cath lab is biplane
+#: (:class:`~sim4endor.tasks.config.CathLabConfig`).
+BIPLANE_OBSERVATIONS: tuple[str, ...] = (
+    "tracked_wire_b", "roadmap_offset_b", "roadmap_ahead_b", "tracking_age_b")
+#: Every entry a robot in a cath lab can measure: the cath lab's sensors, the driver's
+#: encoders and its own last command. The others read simulation state no robot sees (the
+#: 3D tip registered to the CTA, the wall's forces, the lumen around the tip).
+MEASURABLE_OBSERVATIONS: frozenset[str] = frozenset(
+    (*CATHLAB_OBSERVATIONS, *BIPLANE_OBSERVATIONS, "insertion", "rotation", "last_action"))
 #: What the tip sees in its own frame (:mod:`sim4endor.tasks.tip_frame`) plus scalars: it does
 #: not change when the anatomy is rotated or translated with the wire, so nothing in it names
 #: one patient's coordinates.
@@ -81,6 +119,11 @@ OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     # ... and the time since the last progress, so the policy can tell a stalled attempt at
     # a side branch from a first one (see ``STALL_HORIZON``).
     "generalist_stall": (*_NO_RADIUS, "stall_time"),
+    # What a robot in a cath lab measures, for a student of the privileged generalist
+    # (docs/tasks/cathlab.md); a test proves that it reads no other state.
+    "deployable": (*CATHLAB_OBSERVATIONS, "insertion", "rotation", "last_action"),
+    "deployable_biplane": (*CATHLAB_OBSERVATIONS, *BIPLANE_OBSERVATIONS, "insertion",
+                           "rotation", "last_action"),
 }
 
 #: Unit and size of each observation entry (``wire_shape`` is 3 per wire vertex).
@@ -101,4 +144,15 @@ OBSERVATION_UNITS: dict[str, tuple[str, int | None]] = {
     "tip_force": ("N", 1),
     "wall_force": ("N", 1),
     "stall_time": ("s", 1),
+    "tracked_wire": ("m at the isocentre, image axes", 2 * TRACKED_POINTS),
+    "roadmap_offset": ("m at the isocentre, image axes", 2),
+    "roadmap_ahead": ("m at the isocentre, image axes", 2 * PATH_POINTS),
+    "roadmap_remaining": ("m", 1),
+    "roadmap_stall": ("s", 1),
+    "tracking_age": ("s", 1),
+    "proximal_force": ("N", 1),
+    "tracked_wire_b": ("m at the isocentre, image axes", 2 * TRACKED_POINTS),
+    "roadmap_offset_b": ("m at the isocentre, image axes", 2),
+    "roadmap_ahead_b": ("m at the isocentre, image axes", 2 * PATH_POINTS),
+    "tracking_age_b": ("s", 1),
 }

@@ -26,6 +26,8 @@ TAG_BENCHMARKING = "benchmarking"
 #: The paper's phantom tasks started down the wrong branch (see :data:`START_WRONG_BRANCH`).
 TAG_REDIRECT = "redirect"
 TAG_RANDOMISED = "randomised"
+#: The paper's physical phantoms: flat trees in their x-y plane, not a patient's anatomy.
+TAG_PHANTOM = "phantom"
 #: Entries tagged so need task_kwargs (e.g. a vessel folder) and are not in ``ALL_TASKS``.
 TAG_NEEDS_KWARGS = "needs_kwargs"
 
@@ -73,7 +75,7 @@ def _phantom_entry(vessel: str, camel: str, target: str, description: str) -> Ta
         domain=vessel,
         task=f"task_{target.lower()}",
         gym_id=f"{GYM_NAMESPACE}/{camel}-Task{target}-v0",
-        tags=frozenset({TAG_BENCHMARKING}),
+        tags=frozenset({TAG_BENCHMARKING, TAG_PHANTOM}),
         vessel=vessel,
         target=target,
         description=description,
@@ -86,7 +88,7 @@ def _redirect_entry(vessel: str, camel: str, target: str, phantom: str) -> TaskE
         domain=vessel,
         task=f"task_{target.lower()}_redirect",
         gym_id=f"{GYM_NAMESPACE}/{camel}-Task{target}Redirect-v0",
-        tags=frozenset({TAG_REDIRECT}),
+        tags=frozenset({TAG_REDIRECT, TAG_PHANTOM}),
         vessel=vessel,
         target=target,
         description=f"{phantom}: reach target {target} from a wire already down another "

@@ -35,12 +35,22 @@ entry                  shape      unit    meaning
 ``tip_force``          (1,)       N       opt-in: normal wall force on the pre-bent tip
 ``wall_force``         (1,)       N       opt-in: total normal wall force on the wire
 ``stall_time``         (1,)       s       opt-in: time since the last 1 mm of progress
+``tracked_wire``       (8,)       m       opt-in: tracked wire behind the tracked tip, image
+``roadmap_offset``     (2,)       m       opt-in: tracked tip to its roadmap match, image
+``roadmap_ahead``      (16,)      m       opt-in: roadmap ahead of the match, image
+``roadmap_remaining``  (1,)       m       opt-in: roadmap length left to the target
+``roadmap_stall``      (1,)       s       opt-in: time since the match last advanced 1 mm
+``tracking_age``       (1,)       s       opt-in: age of the shown track
+``proximal_force``     (1,)       N       opt-in: the driver's load cell
 =====================  =========  ======  =================================================
 
 Opt in with ``task_kwargs={"observations": ("target_position", ...)}``, or replace the whole
 observation by a named set: ``task_kwargs={"observations": "generalist"}`` gives the
 tip-frame entries that do not change when the anatomy moves
-(:mod:`sim4endor.tasks.tip_frame`; docs/tasks/index.md).
+(:mod:`sim4endor.tasks.tip_frame`; docs/tasks/index.md), and ``"deployable"`` only what a
+robot in a cath lab measures: the wire tracked on fluoroscopy, the roadmap, the encoders and
+the load cell (:mod:`sim4endor.tasks.cathlab`, set by ``task_kwargs={"cathlab": {...}}``;
+docs/tasks/cathlab.md).
 
 **Wire**: ``task_kwargs={"wire": "workhorse"}`` picks a catalogue preset
 (:mod:`sim4endor.models.wires`: ``paper``, ``workhorse``, ``intermediate``, ``stiff``); a
@@ -99,6 +109,7 @@ from sim4endor.tasks import (
     ActionConfig,
     Anatomy,
     AnatomySource,
+    CathLabConfig,
     FixedAnatomy,
     InitialStateConfig,
     NavigationConfig,
@@ -110,6 +121,7 @@ from sim4endor.tasks import (
     random_coronary,
 )
 from sim4endor.tasks.anatomy import compile_anatomy
+from sim4endor.tasks.config import LPS_AXES, PHANTOM_AXES
 
 ALL_TASKS = registry.ALL_TASKS
 BENCHMARKING = registry.BENCHMARKING
@@ -120,7 +132,7 @@ _Config = TypeVar("_Config")
 #: task_kwargs understood by every task (besides the domain-specific ones below).
 _COMMON_KWARGS = (
     "random", "reward", "curvature_weight", "observations", "action", "termination",
-    "initial_state", "pixels", "wire", "fidelity",
+    "initial_state", "pixels", "cathlab", "wire", "fidelity",
 )
 _DOMAIN_KWARGS: Mapping[str, tuple[str, ...]] = {
     "vessel": ("vessel", "target"),
@@ -172,9 +184,10 @@ class NavigationEnvironment(control.Environment):
 
 
 def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig,
-                       initial_state: InitialStateConfig) -> NavigationConfig:
-    """The task config of ``kwargs``; ``termination`` and ``initial_state`` are the task's
-    defaults."""
+                       initial_state: InitialStateConfig, cathlab: CathLabConfig
+                       ) -> NavigationConfig:
+    """The task config of ``kwargs``; ``termination``, ``initial_state`` and ``cathlab`` are
+    the task's defaults."""
     reward = kwargs.get("reward", "manifold")
     if isinstance(reward, str):
         reward = RewardConfig(metric=reward)  # type: ignore[arg-type]
@@ -190,6 +203,7 @@ def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig
                               InitialStateConfig, "initial_state", initial_state),
         observations=_observations(kwargs.get("observations", ())),
         pixels=_config(kwargs.get("pixels", PixelsConfig()), PixelsConfig, "pixels"),
+        cathlab=_config(kwargs.get("cathlab", cathlab), CathLabConfig, "cathlab", cathlab),
     )
 
 
@@ -409,8 +423,8 @@ def load(
             settings of a preset wire, :mod:`sim4endor.models.fidelity`),
             ``random`` (seed), ``reward`` (``"manifold"``/``"euclidean"`` or a
             :class:`~sim4endor.rewards.RewardConfig`), ``curvature_weight``, ``observations``
-            (extra entries), ``action`` / ``termination`` / ``initial_state`` / ``pixels``
-            (config dataclasses);
+            (extra entries), ``action`` / ``termination`` / ``initial_state`` / ``pixels`` /
+            ``cathlab`` (config dataclasses);
             domain ``vessel``: ``vessel``, ``target``; domain ``random_coronary``:
             ``pool_size``, ``pool_seed``, ``cache_dir``; domain ``coronary``: those and
             ``side``, ``anatomy`` (``"normal"``, the default, or ``"wide"``: tortuous, stenosed
@@ -435,7 +449,10 @@ def load(
     termination = _termination(entry, kwargs)
     initial_state = (WRONG_BRANCH_START if entry.start == registry.START_WRONG_BRANCH
                      else InitialStateConfig())
-    config = _navigation_config(kwargs, termination, initial_state)
+    # The phantoms lie in their x-y plane: on the table, face up, for the C-arm's views.
+    cathlab = CathLabConfig(patient_axes=PHANTOM_AXES if registry.TAG_PHANTOM in entry.tags
+                            else LPS_AXES)
+    config = _navigation_config(kwargs, termination, initial_state, cathlab)
     seed = _seed(kwargs.get("random"))
     extra_env_kwargs = _environment_kwargs(environment_kwargs or {})
     anatomies = _anatomy_source(entry, kwargs)

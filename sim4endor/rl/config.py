@@ -43,12 +43,18 @@ def _check(config: object, section: str, **rules: tuple[str, ...]) -> None:
 #: default input scaling): positions over ~0.05-0.1 m (×20), speeds up to 0.03 m/s (×30),
 #: the route ahead up to 20 mm (×50), radii of ~2 mm (×500), tip forces up to the 0.6-1 N
 #: failure (×2), wall forces of a few N (×0.5), stall times up to 5 s (×0.2), rotation
-#: within ±10 turns (×0.02).
+#: within ±10 turns (×0.02); the tracked wire up to 10 mm behind the tip (×100), the roadmap's
+#: offset from it up to a few mm (×200), a track's age up to 0.7 s (×2), the load cell's
+#: reading up to the 1 N push limit (×2).
 OBSERVATION_SCALES: dict[str, float] = {
     "tip_position": 20.0, "tip_velocity": 30.0, "target_position": 20.0, "wire_shape": 20.0,
     "last_action": 1.0, "insertion": 10.0, "rotation": 0.02, "manifold_distance": 10.0,
     "path_ahead": 50.0, "axis_offset": 1.0, "lumen_radius": 500.0,
     "tip_velocity_local": 30.0, "tip_force": 2.0, "wall_force": 0.5, "stall_time": 0.2,
+    "tracked_wire": 100.0, "roadmap_offset": 200.0, "roadmap_ahead": 50.0,
+    "roadmap_remaining": 10.0, "roadmap_stall": 0.2, "tracking_age": 2.0,
+    "proximal_force": 2.0, "tracked_wire_b": 100.0, "roadmap_offset_b": 200.0,
+    "roadmap_ahead_b": 50.0, "tracking_age_b": 2.0,
 }
 
 

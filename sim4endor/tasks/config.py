@@ -7,9 +7,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sim4endor._checks import require
+from sim4endor._checks import is_number, require
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.observations import (  # noqa: F401  (re-exported: the task's vocabulary)
+    BIPLANE_OBSERVATIONS,
     DEFAULT_OBSERVATIONS,
     OBSERVATION_SETS,
     OBSERVATION_UNITS,
@@ -186,6 +187,108 @@ class PixelsConfig:
             raise TaskConfigError("PixelsConfig: up must not be parallel to view_direction.")
 
 
+#: Clinical coronary views, (primary, secondary) C-arm angles in degrees with DICOM's signs
+#: (primary positive = LAO, secondary positive = cranial): the standard projections of the
+#: left tree (RAO caudal, RAO cranial, AP cranial, LAO cranial, LAO caudal "spider") and of
+#: the right (LAO, RAO). Sources: docs/tasks/cathlab.md.
+CORONARY_VIEWS: tuple[tuple[float, float], ...] = (
+    (-30.0, -25.0),
+    (-30.0, 30.0),
+    (0.0, 30.0),
+    (45.0, 25.0),
+    (45.0, -30.0),
+    (30.0, 0.0),
+    (-30.0, 0.0),
+)
+
+
+#: Patient axes of a frame that is already LPS (x left, y posterior, z superior).
+LPS_AXES: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0),
+                                                    (0.0, 0.0, 1.0))
+#: A phantom lying face up: its x to the patient's left, its y to the head, its z anterior.
+PHANTOM_AXES: tuple[tuple[float, float, float], ...] = ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0),
+                                                        (0.0, -1.0, 0.0))
+
+
+@dataclass(frozen=True)
+class CathLabConfig:
+    """What a cath-lab robot measures (:mod:`sim4endor.tasks.cathlab`): fluoroscopic tracking
+    of the wire, the roadmap, the driver's load cell. The figures and their sources are in
+    docs/tasks/cathlab.md.
+
+    Attributes:
+        views: C-arm angles (primary, secondary; deg, LAO and cranial positive) of which each
+            episode draws one.
+        patient_axes: The vessel frame's x, y and z axes in the patient's axes (x left, y
+            posterior, z superior: DICOM's LPS), which the angles refer to. The identity
+            suits a CTA in LPS; the phantoms lie on the table face up (their x-y plane the
+            coronal plane). The generated trees have no orientation in a patient: the views
+            then look at them from the clinical angles about their own axes.
+        view_jitter: Half-width of the uniform jitter added to both angles (deg).
+        biplane: A second plane (the ``*_b`` entries), drawn from the views whose beam is at
+            least ``cathlab.BIPLANE_SEPARATION`` degrees from the first's.
+        frame_rate: Fluoroscopy pulses per second; the image holds between pulses.
+        latency: Seconds from a pulse to its track reaching the policy.
+        tracking_noise: Standard deviation of each tracked image coordinate (m at the
+            isocentre).
+        dropout: Probability that the tracker loses the wire in a frame (the last track is
+            kept and ``tracking_age`` grows).
+        load_cell_noise: Standard deviation of the proximal load cell (N).
+        roadmap_error: Standard deviation of the roadmap's registration to the image, a
+            shift of each image coordinate drawn per episode and plane (m at the isocentre).
+        match_window: How far along the roadmap (m) the match to the tracked tip may move in
+            one frame, so that it does not jump to a branch the image overlaps.
+    """
+
+    views: tuple[tuple[float, float], ...] = CORONARY_VIEWS
+    patient_axes: tuple[tuple[float, float, float], ...] = LPS_AXES
+    view_jitter: float = 5.0
+    biplane: bool = False
+    frame_rate: float = 7.5
+    latency: float = 0.1
+    tracking_noise: float = 0.4e-3
+    dropout: float = 0.02
+    load_cell_noise: float = 0.01
+    roadmap_error: float = 1.0e-3
+    match_window: float = 0.02
+
+    def __post_init__(self) -> None:
+        views = self.views
+        if isinstance(views, list):  # as read from YAML or JSON
+            views = tuple(tuple(view) if isinstance(view, list) else view for view in views)
+            object.__setattr__(self, "views", views)
+        if not views or not all(isinstance(v, tuple) and len(v) == 2 and all(
+                is_number(a) and abs(a) <= 90.0 for a in v) for v in views):
+            raise TaskConfigError(
+                f"CathLabConfig.views must be (primary, secondary) C-arm angles in degrees "
+                f"within ±90, e.g. ((-30, -25), (45, 25)), got {views!r}."
+            )
+        axes = self.patient_axes
+        if isinstance(axes, list):
+            axes = tuple(tuple(axis) if isinstance(axis, list) else axis for axis in axes)
+            object.__setattr__(self, "patient_axes", axes)
+        matrix = np.asarray(axes, dtype=np.float64) if all(
+            isinstance(axis, tuple) and len(axis) == 3 and all(map(is_number, axis))
+            for axis in axes) and len(axes) == 3 else np.zeros((3, 3))
+        if not (np.allclose(matrix @ matrix.T, np.eye(3), atol=1e-6)
+                and np.linalg.det(matrix) > 0):
+            raise TaskConfigError(
+                f"CathLabConfig.patient_axes must be the vessel frame's three axes in LPS "
+                f"patient axes, a rotation (orthonormal rows, determinant +1), got {axes!r}."
+            )
+        if not isinstance(self.biplane, bool):
+            raise TaskConfigError(f"CathLabConfig.biplane must be true or false, got "
+                                  f"{self.biplane!r}.")
+        require(self, "CathLabConfig", TaskConfigError,
+                non_negative=("view_jitter", "latency", "tracking_noise", "load_cell_noise",
+                              "roadmap_error"),
+                positive=("frame_rate", "match_window"),
+                fraction=("dropout",))
+        if self.dropout >= 1.0:
+            raise TaskConfigError(f"CathLabConfig.dropout must be below 1 (a tracker that "
+                                  f"never finds the wire), got {self.dropout!r}.")
+
+
 def _unit(vector: tuple[float, float, float]) -> np.ndarray:
     v = np.asarray(vector, dtype=np.float64)
     norm = float(np.linalg.norm(v))
@@ -205,6 +308,7 @@ class NavigationConfig:
         initial_state: Randomisation of each episode's start.
         observations: Observation entries, defaults first (see ``OPTIONAL_OBSERVATIONS``).
         pixels: Image settings, used when ``"pixels"`` is observed.
+        cathlab: The cath lab's sensors, used by the entries of ``CATHLAB_OBSERVATIONS``.
     """
 
     action: ActionConfig = field(default_factory=ActionConfig)
@@ -213,6 +317,7 @@ class NavigationConfig:
     initial_state: InitialStateConfig = field(default_factory=InitialStateConfig)
     observations: tuple[str, ...] = DEFAULT_OBSERVATIONS
     pixels: PixelsConfig = field(default_factory=PixelsConfig)
+    cathlab: CathLabConfig = field(default_factory=CathLabConfig)
 
     def __post_init__(self) -> None:
         valid = DEFAULT_OBSERVATIONS + OPTIONAL_OBSERVATIONS
@@ -221,3 +326,9 @@ class NavigationConfig:
             raise TaskConfigError(f"Unknown observations {unknown}; valid: {list(valid)}.")
         if len(set(self.observations)) != len(self.observations):
             raise TaskConfigError(f"Observations listed twice: {list(self.observations)}.")
+        second = [o for o in self.observations if o in BIPLANE_OBSERVATIONS]
+        if second and not self.cathlab.biplane:
+            raise TaskConfigError(
+                f"Observations {second} are a biplane lab's second plane; set "
+                "task_kwargs cathlab={'biplane': True} or drop them."
+            )

@@ -24,14 +24,17 @@ from sim4endor import rewards
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
 from sim4endor.observations import (
+    BIPLANE_OBSERVATIONS,
+    CATHLAB_OBSERVATIONS,
     DISTANCE_HORIZON,
     FORCE_HORIZON,
-    PATH_POINTS,
+    OBSERVATION_UNITS,
     STALL_HORIZON,
     STALL_PROGRESS,
 )
 from sim4endor.tasks import starts
 from sim4endor.tasks.anatomy import Anatomy, AnatomySource
+from sim4endor.tasks.cathlab import CathLab, CathLabView, Measurement
 from sim4endor.tasks.config import NavigationConfig, TaskConfigError
 from sim4endor.tasks.fluoroscopy import Fluoroscope
 from sim4endor.tasks.tip_frame import PathToTarget, TipView, tip_view
@@ -52,6 +55,8 @@ FAILURES: tuple[str, ...] = (
 
 #: Observation entries read from one :class:`~sim4endor.tasks.tip_frame.TipView` per step.
 _TIP_VIEW_ENTRIES = frozenset({"path_ahead", "axis_offset", "lumen_radius", "tip_velocity_local"})
+#: Observation entries read from one :class:`~sim4endor.tasks.cathlab.CathLabView` per step.
+_CATHLAB_ENTRIES = frozenset((*CATHLAB_OBSERVATIONS, *BIPLANE_OBSERVATIONS))
 
 
 def failure_code(failure: str) -> int:
@@ -165,6 +170,8 @@ class NavigationTask(base.Task):
         self._max_rotation = math.inf
         self._evaluation: StepEvaluation | None = None
         self._fluoroscopes: dict[str, Fluoroscope] = {}
+        self._cathlab = (CathLab(self.config.cathlab, 2 if self.config.cathlab.biplane else 1)
+                         if _CATHLAB_ENTRIES & set(self.config.observations) else None)
 
     def reseed(self, seed: int) -> None:
         """Replaces the task's random generator by one seeded with ``seed``."""
@@ -238,6 +245,10 @@ class NavigationTask(base.Task):
         self._closest = self.manifold_distance()(physics.tip_position())
         self._closest_time = physics.time()
         self._evaluation = None
+        if self._cathlab is not None:
+            graph = self._anatomy.vessel.centerline
+            route = self.path_to_target().route(graph.labels[INLET_LABEL])
+            self._cathlab.reset(graph.nodes[route], self.random)
 
     def _start_off_path(self, physics: control.Physics, depths: tuple[float, float]) -> None:
         """Drives the wire down the path to another target, then turns in the drawn roll (see
@@ -401,36 +412,30 @@ class NavigationTask(base.Task):
     def observation_spec(self, physics: control.Physics) -> Mapping[str, specs.Array]:
         """Returns the spec of every configured entry without rendering or stepping."""
         pixels = self.config.pixels
-        shapes = {
-            "tip_position": (3,),
-            "tip_velocity": (3,),
-            "target_position": (3,),
+        variable = {
             "wire_shape": (3 * len(physics.wire_points()),),
-            "last_action": (2,),
-            "insertion": (1,),
-            "rotation": (1,),
-            "manifold_distance": (1,),
             "pixels": (pixels.height, pixels.width, 1),
-            "path_ahead": (3 * PATH_POINTS,),
-            "axis_offset": (3,),
-            "lumen_radius": (1,),
-            "tip_velocity_local": (3,),
-            "tip_force": (1,),
-            "wall_force": (1,),
-            "stall_time": (1,),
         }
         return collections.OrderedDict(
-            (name, specs.Array(shapes[name], np.uint8 if name == "pixels" else np.float64, name))
+            (name, specs.Array(variable.get(name, (OBSERVATION_UNITS[name][1],)),
+                               np.uint8 if name == "pixels" else np.float64, name))
             for name in self.config.observations
         )
 
     def get_observation(self, physics: control.Physics) -> Mapping[str, np.ndarray]:
         """Returns the configured observation entries, in order (SI units)."""
         obs: collections.OrderedDict[str, np.ndarray] = collections.OrderedDict()
-        view = self._tip_view(physics) if _TIP_VIEW_ENTRIES & set(self.config.observations) \
-            else None
+        names = set(self.config.observations)
+        view = self._tip_view(physics) if _TIP_VIEW_ENTRIES & names else None
+        # The cath lab's sensors see the imaged wire, the load cell and the clock, no more.
+        lab = None if self._cathlab is None else self._cathlab.observe(
+            Measurement(physics.time(), physics.wire_points(), physics.insertion_force()))
         for name in self.config.observations:
-            obs[name] = self._observe(name, physics, view)
+            if name in _CATHLAB_ENTRIES:
+                assert lab is not None  # built whenever a cath-lab entry is configured
+                obs[name] = _cathlab_entry(name, lab)
+            else:
+                obs[name] = self._observe(name, physics, view)
         return obs
 
     def _tip_view(self, physics: control.Physics) -> TipView:
@@ -484,3 +489,17 @@ class NavigationTask(base.Task):
             self._fluoroscopes[key] = Fluoroscope(self._anatomy.vessel.centerline,
                                                   self.config.pixels)
         return self._fluoroscopes[key].image(physics.wire_points())
+
+
+def _cathlab_entry(name: str, lab: CathLabView) -> np.ndarray:
+    """One cath-lab entry as a flat array; ``*_b`` entries are the second plane's."""
+    plane = 1 if name.endswith("_b") else 0
+    base = name.removesuffix("_b")
+    if base == "roadmap_remaining":
+        return np.array([lab.roadmap_remaining])
+    if base == "roadmap_stall":
+        return np.array([lab.roadmap_stall])
+    if base == "proximal_force":
+        return np.array([lab.proximal_force])
+    per_plane: FloatArray = getattr(lab, base)[plane]
+    return np.array(per_plane, dtype=np.float64).reshape(-1)
