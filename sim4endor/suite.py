@@ -122,6 +122,7 @@ from sim4endor.tasks import (
 )
 from sim4endor.tasks.anatomy import compile_anatomy
 from sim4endor.tasks.config import LPS_AXES, PHANTOM_AXES
+from sim4endor.tasks.randomisation import RANDOMISATION, Randomisation
 
 ALL_TASKS = registry.ALL_TASKS
 BENCHMARKING = registry.BENCHMARKING
@@ -132,7 +133,7 @@ _Config = TypeVar("_Config")
 #: task_kwargs understood by every task (besides the domain-specific ones below).
 _COMMON_KWARGS = (
     "random", "reward", "curvature_weight", "observations", "action", "termination",
-    "initial_state", "pixels", "cathlab", "wire", "fidelity",
+    "initial_state", "pixels", "cathlab", "randomise", "wire", "fidelity",
 )
 _DOMAIN_KWARGS: Mapping[str, tuple[str, ...]] = {
     "vessel": ("vessel", "target"),
@@ -204,7 +205,21 @@ def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig
         observations=_observations(kwargs.get("observations", ())),
         pixels=_config(kwargs.get("pixels", PixelsConfig()), PixelsConfig, "pixels"),
         cathlab=_config(kwargs.get("cathlab", cathlab), CathLabConfig, "cathlab", cathlab),
+        randomisation=_randomisation(kwargs.get("randomise", False)),
     )
+
+
+def _randomisation(value: Any) -> Randomisation | None:
+    """task_kwargs ``randomise``: true for :data:`~sim4endor.tasks.randomisation.RANDOMISATION`,
+    a mapping of its fields for other ranges, false (the default) for none."""
+    if value is True:
+        return RANDOMISATION
+    if value is False or value is None:
+        return None
+    if isinstance(value, Mapping):
+        return _config(value, Randomisation, "randomise", RANDOMISATION)
+    raise TaskConfigError(f"task_kwargs randomise must be true, false or a mapping of "
+                          f"Randomisation's ranges, got {value!r}.")
 
 
 def _observations(value: Any) -> tuple[str, ...]:
@@ -383,7 +398,9 @@ def _anatomy_source(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> Ana
             same_wire=same_wire,
             target_weights=_target_weights(kwargs),
             anatomy=kwargs.get("anatomy", "normal"),
-            vary_wire=kwargs.get("vary_wire", False),
+            # Randomisation gives each tree its own wire unit unless told otherwise (and
+            # cannot where one wire must serve every tree).
+            vary_wire=kwargs.get("vary_wire", bool(kwargs.get("randomise")) and not same_wire),
         )
     if entry.domain == "random_coronary":
         return random_coronary.pool(

@@ -77,8 +77,14 @@ def add_task_arguments(parser: argparse.ArgumentParser, *, evaluation_split: boo
     group.add_argument("--pool-size", type=positive_int, metavar="N",
                        help="generated trees: number of training trees")
     group.add_argument("--observations", choices=sorted(OBSERVATION_SETS), metavar="SET",
-                       help="observation set: paper (default; tip position and velocity) or "
-                            "generalist (tip-frame entries, for any anatomy)")
+                       help="observation set: paper (default; tip position and velocity), "
+                            "generalist (tip-frame entries, for any anatomy) or deployable "
+                            "(what a robot in a cath lab measures)")
+    group.add_argument("--randomise", action="store_const", const=True,
+                       help="domain randomisation for sim-to-real: the tracking's noise, "
+                            "latency and lost frames, the action delay, the driver's backlash "
+                            "and slip, and on coronary trees a wire unit per tree, drawn per "
+                            "episode (docs/tasks/cathlab.md)")
     if evaluation_split:
         group.add_argument("--eval-pool-seed", type=seed, metavar="SEED",
                            help="generated trees: seed of the first evaluation tree (held out "
@@ -92,7 +98,7 @@ def task_arguments(args: argparse.Namespace) -> dict[str, Any]:
     config still finds it from another working directory.
     """
     names = ("vessel", "target", "wire", "tip", "fidelity", "pool_seed", "pool_size",
-             "eval_pool_seed", "observations")
+             "eval_pool_seed", "observations", "randomise")
     given = {name: getattr(args, name, None) for name in names}
     if given["vessel"] is not None and Path(given["vessel"]).exists():
         given["vessel"] = str(Path(given["vessel"]).resolve())

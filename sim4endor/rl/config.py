@@ -117,6 +117,9 @@ class EnvConfig:
         vary_wire: domain ``coronary``: each tree its own unit of the wire (stiffness,
             friction and tip shape drawn within
             :class:`sim4endor.models.wires.WireVariation`'s ranges; ``None``: the one wire).
+        randomise: domain randomisation for sim-to-real, drawn per episode (the tracking,
+            the action delay, the driver's backlash and slip; on coronary trees a wire unit
+            per tree: :mod:`sim4endor.tasks.randomisation`; ``None``: off).
         target_weights: domain ``coronary``, training only: relative weights of drawing each
             target label, e.g. ``{AM: 3, RV: 3}`` (others 1), a curriculum that trains more on
             the branches a policy misses; evaluations keep drawing targets uniformly, so
@@ -139,6 +142,7 @@ class EnvConfig:
     eval_pool_seed: int | None = None
     anatomy: str | None = None
     vary_wire: bool | None = None
+    randomise: bool | None = None
     target_weights: dict[str, float] | None = None
 
     def __post_init__(self) -> None:
@@ -223,6 +227,7 @@ class EnvConfig:
         given = {"vessel": self.vessel, "target": self.target, "wire": self.wire_setting(),
                  "fidelity": self.fidelity, "pool_seed": pool_seed, "pool_size": self.pool_size,
                  "anatomy": self.anatomy, "vary_wire": self.vary_wire,
+                 "randomise": self.randomise,
                  "target_weights": None if evaluation else self.target_weights}
         kwargs.update({key: value for key, value in given.items() if value is not None})
         return kwargs

@@ -131,6 +131,8 @@ class CathLab:
     def __init__(self, config: CathLabConfig, planes: int) -> None:
         """Checks that the views allow ``planes`` planes (1, or 2 for a biplane lab)."""
         self.config = config
+        # This episode's settings: the lab's own, or a randomised draw of them.
+        self.sensors = config
         self.planes = planes
         beams = [beam_direction(*view) for view in config.views]
         if planes == 2 and not any(self._separated(a, b) for a in beams for b in beams):
@@ -158,14 +160,17 @@ class CathLab:
     def _separated(a: FloatArray, b: FloatArray) -> bool:
         return float(np.dot(a, b)) <= math.cos(math.radians(BIPLANE_SEPARATION))
 
-    def reset(self, route: FloatArray, random: np.random.RandomState) -> None:
+    def reset(self, route: FloatArray, random: np.random.RandomState,
+              config: CathLabConfig | None = None) -> None:
         """Starts an episode: draws the views and the sensors' noise seed from ``random``.
 
         Args:
             route: (M, 3) the preoperative centerline route from the inlet to the target
                 (m, vessel frame): the roadmap.
             random: The task's generator.
+            config: This episode's sensors (a randomised draw), if not the lab's own.
         """
+        self.sensors = config or self.config
         self._random = np.random.RandomState(random.randint(2**31))
         beams = [self._draw_beam()]
         while len(beams) < self.planes:
@@ -174,13 +179,13 @@ class CathLab:
                 beams.append(beam)
         # Image axes in the patient's frame, then in the vessel's (a vessel point's patient
         # coordinates are axes.T @ point).
-        axes = np.asarray(self.config.patient_axes)
+        axes = np.asarray(self.sensors.patient_axes)
         self._bases = np.stack([image_basis(beam) @ axes.T for beam in beams])
         arc = arc_lengths(route)
         self._route_arc = np.linspace(0.0, arc[-1], math.ceil(arc[-1] / _ROADMAP_STEP) + 1)
         self._route = _along(route, self._route_arc)
         self._roadmap = np.einsum("pij,mj->pmi", self._bases, self._route) + \
-            self._random.normal(0.0, self.config.roadmap_error, (self.planes, 1, 2))
+            self._random.normal(0.0, self.sensors.roadmap_error, (self.planes, 1, 2))
         self._frames.clear()
         self._next_pulse = -math.inf
         self._match = self._furthest = self._furthest_time = 0.0
@@ -188,7 +193,7 @@ class CathLab:
         self._view = None
 
     def _draw_beam(self) -> FloatArray:
-        views, jitter = self.config.views, self.config.view_jitter
+        views, jitter = self.sensors.views, self.sensors.view_jitter
         primary, secondary = views[self._random.randint(len(views))]
         return beam_direction(primary + self._random.uniform(-jitter, jitter),
                               secondary + self._random.uniform(-jitter, jitter))
@@ -206,7 +211,7 @@ class CathLab:
         if self._match > self._furthest + STALL_PROGRESS:
             self._furthest, self._furthest_time = self._match, measurement.time
         ahead = self._roadmap_at(self._match + PATH_SPACING * np.arange(1, PATH_POINTS + 1))
-        force = measurement.axial_force + self._random.normal(0.0, self.config.load_cell_noise)
+        force = measurement.axial_force + self._random.normal(0.0, self.sensors.load_cell_noise)
         view = CathLabView(
             tracked_wire=track[:, -2::-1] - tip[:, None],
             roadmap_offset=self._roadmap_at(np.array([self._match]))[:, 0] - tip,
@@ -222,14 +227,14 @@ class CathLab:
     def _pulse(self, measurement: Measurement) -> None:
         """Images the wire and tracks it in each plane; a lost plane keeps its last track."""
         first = not self._frames
-        period = 1.0 / self.config.frame_rate
+        period = 1.0 / self.sensors.frame_rate
         # The pulses run on their own clock but are imaged at control steps (the only
         # instants the state is known): the next at the first step on or after the next tick.
         self._next_pulse = (math.floor(measurement.time / period + 1e-9) + 1) * period - 1e-9
         images = np.einsum("pij,mj->pmi", self._bases, measurement.wire_points)
         for plane, image in enumerate(images):
             # The first frame of an episode is always tracked: the operator starts on one.
-            if first or self._random.uniform() >= self.config.dropout:
+            if first or self._random.uniform() >= self.sensors.dropout:
                 self._last_track[plane] = self._track(image)
                 self._found_at[plane] = measurement.time
         self._frames.append((measurement.time, self._last_track.copy(), self._found_at.copy()))
@@ -238,12 +243,12 @@ class CathLab:
         """(TRACKED_POINTS + 1, 2): the tracked wire, proximal first and the tip last."""
         backwards = image[::-1]
         points = _along(backwards, TRACKED_SPACING * np.arange(TRACKED_POINTS + 1))[::-1]
-        return points + self._random.normal(0.0, self.config.tracking_noise, points.shape)
+        return points + self._random.normal(0.0, self.sensors.tracking_noise, points.shape)
 
     def _shown(self, time: float) -> tuple[FloatArray, FloatArray]:
         """The newest frame whose track has reached the policy by ``time`` (the episode's
         first frame until one has)."""
-        ready = time - self.config.latency + 1e-9
+        ready = time - self.sensors.latency + 1e-9
         while len(self._frames) > 1 and self._frames[1][0] <= ready:
             self._frames.popleft()
         _, track, found_at = self._frames[0]
@@ -253,7 +258,7 @@ class CathLab:
         """Moves the match to the route point nearest the tracked tip in every plane,
         within ``match_window`` of the last match (anywhere at the episode's first)."""
         if self._frames_matched:
-            window = self.config.match_window
+            window = self.sensors.match_window
             low = int(np.searchsorted(self._route_arc, self._match - window))
             high = int(np.searchsorted(self._route_arc, self._match + window, side="right"))
         else:  # the episode's first frame: the operator finds the tip on the whole roadmap

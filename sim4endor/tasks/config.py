@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -17,6 +18,9 @@ from sim4endor.observations import (  # noqa: F401  (re-exported: the task's voc
     OPTIONAL_OBSERVATIONS,
 )
 from sim4endor.rewards import RewardConfig
+
+if TYPE_CHECKING:
+    from sim4endor.tasks.randomisation import Randomisation
 
 
 class TaskConfigError(Sim4EndoRError, ValueError):
@@ -309,6 +313,8 @@ class NavigationConfig:
         observations: Observation entries, defaults first (see ``OPTIONAL_OBSERVATIONS``).
         pixels: Image settings, used when ``"pixels"`` is observed.
         cathlab: The cath lab's sensors, used by the entries of ``CATHLAB_OBSERVATIONS``.
+        randomisation: Ranges of the sensors and the driver drawn per episode
+            (:mod:`sim4endor.tasks.randomisation`); ``None``: none drawn.
     """
 
     action: ActionConfig = field(default_factory=ActionConfig)
@@ -318,6 +324,7 @@ class NavigationConfig:
     observations: tuple[str, ...] = DEFAULT_OBSERVATIONS
     pixels: PixelsConfig = field(default_factory=PixelsConfig)
     cathlab: CathLabConfig = field(default_factory=CathLabConfig)
+    randomisation: Randomisation | None = None
 
     def __post_init__(self) -> None:
         valid = DEFAULT_OBSERVATIONS + OPTIONAL_OBSERVATIONS

@@ -37,6 +37,7 @@ from sim4endor.tasks.anatomy import Anatomy, AnatomySource
 from sim4endor.tasks.cathlab import CathLab, CathLabView, Measurement
 from sim4endor.tasks.config import NavigationConfig, TaskConfigError
 from sim4endor.tasks.fluoroscopy import Fluoroscope
+from sim4endor.tasks.randomisation import DriverModel
 from sim4endor.tasks.tip_frame import PathToTarget, TipView, tip_view
 from sim4endor.vessels.centerline import INLET_LABEL, Projection
 
@@ -172,6 +173,9 @@ class NavigationTask(base.Task):
         self._fluoroscopes: dict[str, Fluoroscope] = {}
         self._cathlab = (CathLab(self.config.cathlab, 2 if self.config.cathlab.biplane else 1)
                          if _CATHLAB_ENTRIES & set(self.config.observations) else None)
+        # This episode's driver between the commands and the carriage; None: commands go
+        # straight to the carriage (no randomisation).
+        self._driver: DriverModel | None = None
 
     def reseed(self, seed: int) -> None:
         """Replaces the task's random generator by one seeded with ``seed``."""
@@ -245,10 +249,16 @@ class NavigationTask(base.Task):
         self._closest = self.manifold_distance()(physics.tip_position())
         self._closest_time = physics.time()
         self._evaluation = None
+        randomisation = self.config.randomisation
+        if randomisation is not None:
+            self._driver = randomisation.driver(self.random)
+            self._driver.reset(self._insertion, self._rotation)
         if self._cathlab is not None:
             graph = self._anatomy.vessel.centerline
             route = self.path_to_target().route(graph.labels[INLET_LABEL])
-            self._cathlab.reset(graph.nodes[route], self.random)
+            sensors = (None if randomisation is None
+                       else randomisation.cathlab(self.config.cathlab, self.random))
+            self._cathlab.reset(graph.nodes[route], self.random, sensors)
 
     def _start_off_path(self, physics: control.Physics, depths: tuple[float, float]) -> None:
         """Drives the wire down the path to another target, then turns in the drawn roll (see
@@ -314,10 +324,15 @@ class NavigationTask(base.Task):
         insert, rotate = min(max(insert, -1.0), 1.0), min(max(rotate, -1.0), 1.0)
         cfg = self.config.action
         # The carriage cannot retract behind its home position: a hard stop, not a failure.
-        self._insertion = max(0.0, self._insertion + insert * cfg.max_insertion_step)
-        self._rotation += rotate * cfg.max_rotation_step
+        insertion = max(0.0, self._insertion + insert * cfg.max_insertion_step)
+        rotation = self._rotation + rotate * cfg.max_rotation_step
         self._last_action = np.array([insert, rotate])
-        physics.set_driver_targets(self._insertion, self._rotation)
+        if self._driver is None:
+            physics.set_driver_targets(insertion, rotation)
+        else:
+            physics.set_driver_targets(*self._driver.move(insertion - self._insertion,
+                                                          rotation - self._rotation))
+        self._insertion, self._rotation = insertion, rotation
 
     def after_step(self, physics: control.Physics) -> None:
         """Evaluates the new state once: distance, success, failure, reward terms."""
