@@ -15,6 +15,7 @@ import yaml
 
 from sim4endor import assets
 from sim4endor.cli import main
+from sim4endor.observations import OBSERVATION_SETS, OBSERVATION_UNITS
 from sim4endor.rl import checkpoint, imitation, recipe
 from sim4endor.rl.config import ConfigError, default_config
 from sim4endor.rl.runs import load_agent
@@ -272,3 +273,34 @@ def test_the_expert_takes_over_where_the_policy_is_stuck(tmp_path: Path) -> None
     loaded = imitation.Episodes.load(path)
     for name in ("observation", "action", "expert", "episode", "success"):
         np.testing.assert_array_equal(getattr(loaded, name), getattr(taken, name))
+
+
+def test_a_teacher_distils_into_a_student_that_sees_what_a_robot_measures(
+        tmp_path: Path) -> None:
+    """With ``teacher``: the shipped generalist drives the demonstrations and labels every
+    state the student drives to in the round; the student reads the deployable set."""
+    out = tmp_path / "student"
+    assert _train(out, "--set", "teacher=generalist",
+                  "--set", "policy.env.observations=deployable") == 0
+    records = _log(out)
+    assert [r["stage"] for r in records] == STAGES
+    assert records[0]["labels"] == 3 * 40 and records[2]["labels"] == 40  # every step
+    config, _ = load_agent(out / recipe.POLICY_DIR)
+    assert config.env.observations == "deployable"
+    demos = imitation.Episodes.load(next((out / "data").glob("demonstrations_0_*.npz")))
+    np.testing.assert_array_equal(demos.label, demos.action)  # the teacher drove
+    rounds = imitation.Episodes.load(next((out / "data").glob("takeover_1_*.npz")))
+    assert rounds.expert.all()
+    assert not np.allclose(rounds.label, rounds.action)  # the student drove, the teacher labels
+    assert rounds.observation.shape[1] == sum(
+        OBSERVATION_UNITS[name][1] for name in OBSERVATION_SETS["deployable"])
+
+
+def test_a_teacher_must_run_the_students_wire(tmp_path: Path) -> None:
+    with pytest.raises(recipe.RecipeError, match=r"another \['tip'\]"):
+        recipe.RecipeRun(recipe.load_recipe("generalist", [
+            "teacher=generalist", "policy.env.tip=2,45", "rounds=0"]), tmp_path,
+            progress=False)._teacher()
+    with pytest.raises(recipe.RecipeError, match="neither a shipped policy"):
+        recipe.RecipeRun(recipe.load_recipe("generalist", [
+            f"teacher={tmp_path / 'nothing'}"]), tmp_path / "run", progress=False)._teacher()

@@ -18,6 +18,14 @@ the policy worse (the plain expert's retreats and retries follow its own history
 labels on another driver's states contradict each other;
 docs/results/generalisation/expert_dagger_rounds.csv): hence the
 takeovers, where the expert drives what it labels.
+
+A learnt **teacher** has no such history: a privileged policy is a function of its
+observation, so it labels any state consistently. :class:`Teaching` distils it into a
+student that reads another observation set (the ``deployable`` one of what a cath lab
+measures): the teacher drives the demonstrations, and in later rounds the student drives
+while the teacher labels every state it visits, from that state's privileged observation
+(DAgger, Ross, Gordon and Bagnell, AISTATS 2011; teacher-student as in Chen et al.,
+"Learning by cheating", CoRL 2019).
 """
 
 from __future__ import annotations
@@ -54,9 +62,12 @@ class Episodes:
     Attributes:
         observation: the policy's observation at every step, ``(steps, width)``.
         action: the action taken, ``(steps, 2)``.
-        expert: whether the expert took it (the steps that are labels), ``(steps,)``.
+        expert: whether the step is a label: the expert took it, or a teacher labelled it
+            (``label``), ``(steps,)``.
         episode: the episode index of every step, ``(steps,)``.
         success: whether each episode reached its target, ``(episodes,)``.
+        label: the action to learn at every step: the action taken, or the teacher's where
+            a teacher labels the steps another policy drove, ``(steps, 2)``.
     """
 
     observation: np.ndarray
@@ -64,6 +75,7 @@ class Episodes:
     expert: np.ndarray
     episode: np.ndarray
     success: np.ndarray
+    label: np.ndarray
 
     def save(self, path: Path) -> None:
         """Writes a compressed ``.npz``, atomically (a file that exists is complete)."""
@@ -75,19 +87,22 @@ class Episodes:
     def load(cls, path: Path) -> Episodes:
         """Reads what :meth:`save` wrote."""
         with np.load(path) as data:
-            return cls(**{field.name: data[field.name] for field in dataclasses.fields(cls)})
+            fields = {name: data[name] for name in data.files}
+        fields.setdefault("label", fields["action"])  # saved before teachers: the expert's
+        return cls(**{field.name: fields[field.name] for field in dataclasses.fields(cls)})
 
     @property
     def labels(self) -> tuple[np.ndarray, np.ndarray]:
-        """The expert's steps: their observations and actions."""
-        return self.observation[self.expert], self.action[self.expert]
+        """The labelled steps: their observations and labels."""
+        return self.observation[self.expert], self.label[self.expert]
 
     def successful(self) -> Episodes:
         """Only the episodes that reached their target (indices renumbered from 0)."""
         reached = np.unique(self.episode)[self.success]  # sorted: the order of ``success``
         keep = np.isin(self.episode, reached)
         return Episodes(self.observation[keep], self.action[keep], self.expert[keep],
-                        np.searchsorted(reached, self.episode[keep]), self.success[self.success])
+                        np.searchsorted(reached, self.episode[keep]), self.success[self.success],
+                        self.label[keep])
 
 
 class Takeover(TensorDictModuleBase):
@@ -145,21 +160,72 @@ class _Demonstration(TensorDictModuleBase):
         return tensordict
 
 
+@dataclasses.dataclass(frozen=True)
+class Teacher:
+    """A privileged policy that labels a student's states.
+
+    Attributes:
+        actor: its deterministic actor, reading ``observation``.
+        entries: its observation entries, in the order its observation vector holds them.
+    """
+
+    actor: TensorDictModuleBase
+    entries: tuple[str, ...]
+
+
+class Teaching(TensorDictModuleBase):
+    """Labels every step with the teacher's action on that state's privileged observation;
+    acts with ``student`` (None: the teacher drives). Writes ``action``, ``label`` and
+    ``expert`` (every step is a label)."""
+
+    def __init__(self, teacher: Teacher, student: TensorDictModuleBase | None,
+                 env: EnvBase) -> None:
+        super().__init__()
+        self.in_keys = list(student.in_keys) if student is not None else ["observation"]
+        self.out_keys = ["action", "label", "expert"]
+        self._teacher, self._student = teacher, student
+        self._dm_env = env.base_env.dm_env
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        task, physics = self._dm_env.task, self._dm_env.physics
+        # Flattened as the gymnasium adapter flattens the student's: entries in order.
+        privileged = np.concatenate([np.ravel(value) for value in
+                                     task.observe(physics, self._teacher.entries).values()])
+        view = TensorDict({"observation": torch.as_tensor(privileged, dtype=torch.float32)})
+        label = self._teacher.actor(view)["action"]
+        if self._student is None:
+            tensordict["action"] = label
+        else:
+            self._student(tensordict)
+        tensordict["label"] = label
+        tensordict["expert"] = torch.tensor(True)
+        return tensordict
+
+
 def collect(env: EnvBase, actor: TensorDictModuleBase | None, *, episodes: int,
-            max_steps: int, stall_steps: int = 40, progress: bool = False,
-            desc: str = "episodes") -> Episodes:
-    """Runs ``episodes`` episodes in ``env``: the plain expert's demonstrations when ``actor``
-    is None, else ``actor`` (deterministic) with the probing expert's takeovers after
-    ``stall_steps`` control steps without progress."""
-    driver = _Demonstration(env) if actor is None else Takeover(actor, env, stall_steps)
+            max_steps: int, stall_steps: int = 40, teacher: Teacher | None = None,
+            progress: bool = False, desc: str = "episodes") -> Episodes:
+    """Runs ``episodes`` episodes in ``env``.
+
+    Without a ``teacher``: the plain expert's demonstrations when ``actor`` is None, else
+    ``actor`` (deterministic) with the probing expert's takeovers after ``stall_steps``
+    control steps without progress. With one: the teacher drives when ``actor`` is None,
+    else ``actor`` drives, and the teacher labels every step.
+    """
+    if teacher is not None:
+        driver: TensorDictModuleBase = Teaching(teacher, actor, env)
+    else:
+        driver = _Demonstration(env) if actor is None else Takeover(actor, env, stall_steps)
     columns: dict[str, list[np.ndarray]] = {"observation": [], "action": [], "expert": [],
-                                            "episode": []}
+                                            "episode": [], "label": []}
     success = []
     with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
         for i, rollout in enumerate(rollouts(env, driver, trials=episodes, max_steps=max_steps,
                                              progress=progress, desc=desc)):
             for key in ("observation", "action", "expert"):
                 columns[key].append(rollout[key].numpy())
+            columns["label"].append(rollout["label" if teacher is not None
+                                            else "action"].numpy())
             columns["episode"].append(np.full(rollout.shape[0], i))
             success.append(reached(rollout))
     return Episodes(**{k: np.concatenate(v) for k, v in columns.items()},

@@ -11,6 +11,11 @@ policy by imitation of the privileged expert (:mod:`sim4endor.rl.imitation`), in
     the last stage's policy drives each takeover source, the probing expert taking over
     where it stalls; then the last policy is cloned on every label so far (HG-DAgger).
 
+With a ``teacher`` (a trained policy, e.g. the shipped ``generalist``) the recipe distils it
+into a student that reads ``policy.env.observations`` (e.g. ``deployable``): the teacher
+drives the demonstrations, and in each round the student drives while the teacher labels
+every state it visits (DAgger; :class:`~sim4endor.rl.imitation.Teaching`).
+
 Episodes are collected in chunks of ``chunk_episodes`` by ``envs`` worker processes or by
 Ray tasks on a cluster (``--backend ray``), and saved by this process (one ``.npz`` each under
 ``DIR/data``, written atomically); every learnt stage is a run folder under ``DIR/stages`` and
@@ -36,12 +41,15 @@ from typing import Any
 import numpy as np
 import torch
 import yaml
+from torchrl.data import Bounded, Composite, TensorSpec, Unbounded
+from torchrl.envs import EnvBase
 from tqdm.auto import tqdm
 
 from sim4endor._atomic import atomic_directory, atomic_write_text, exclusive_output
 from sim4endor._checks import require
-from sim4endor.assets import RECIPE_FILE, policies_dir, recipe_names
+from sim4endor.assets import RECIPE_FILE, policies_dir, policy_names, recipe_names, run_or_policy
 from sim4endor.errors import Sim4EndoRError
+from sim4endor.observations import OBSERVATION_UNITS
 from sim4endor.rl import checkpoint, imitation
 from sim4endor.rl.algorithms import Agent, build_agent
 from sim4endor.rl.config import (
@@ -49,6 +57,7 @@ from sim4endor.rl.config import (
     EnvConfig,
     TrainConfig,
     default_config,
+    load_config,
     merge_fields,
     override_fields,
     save_config,
@@ -148,6 +157,9 @@ class RecipeConfig:
             probing expert takes over.
         max_steps: control-step cap of an episode (the task's time limit also applies).
         chunk_episodes: episodes per saved chunk: what Ctrl-C can lose at most, per worker.
+        teacher: a trained policy (a shipped name or a run folder) that labels the states
+            instead of the scripted experts (``None``: the experts). It must run the
+            student's wire, tip and fidelity.
     """
 
     seed: int = 1
@@ -160,6 +172,7 @@ class RecipeConfig:
     stall_steps: int = 40
     max_steps: int = 800
     chunk_episodes: int = 10
+    teacher: str | None = None
 
     def __post_init__(self) -> None:
         require(self, "", ConfigError,
@@ -210,6 +223,7 @@ class _Chunk:
     stall_steps: int
     max_steps: int
     out: Path  # where the calling process saves them
+    teacher: _Driver | None = None  # labels every step instead of the scripted experts
 
 
 def _collect_chunk(chunk: _Chunk) -> tuple[Path, imitation.Episodes]:
@@ -223,11 +237,27 @@ def _collect_chunk(chunk: _Chunk) -> tuple[Path, imitation.Episodes]:
             agent = build_agent(chunk.driver.config, env.observation_spec, env.action_spec)
             agent.env_actor.load_state_dict(chunk.driver.weights)
             actor = agent.env_actor
+        teacher = None if chunk.teacher is None else _teacher(chunk.teacher, env)
         return chunk.out, imitation.collect(env, actor, episodes=chunk.episodes,
                                             max_steps=chunk.max_steps,
-                                            stall_steps=chunk.stall_steps)
+                                            stall_steps=chunk.stall_steps, teacher=teacher)
     finally:
         env.close()
+
+
+def _teacher(driver: _Driver, env: EnvBase) -> imitation.Teacher:
+    """The teacher whose config and weights ``driver`` holds, on ``env``'s actions."""
+    agent = _teacher_agent(driver.config, env.action_spec)
+    agent.env_actor.load_state_dict(driver.weights)
+    return imitation.Teacher(agent.env_actor, driver.config.env.observation_names())
+
+
+def _teacher_agent(config: TrainConfig, action_spec: TensorSpec) -> Agent:
+    """A fresh agent of a teacher's config, its networks sized by its own observation set
+    (the student's environment observes another)."""
+    width = sum(OBSERVATION_UNITS[name][1] or 0 for name in config.env.observation_names())
+    spec = Composite(observation=Unbounded(shape=(width,), dtype=torch.float32))
+    return build_agent(config, spec, action_spec)
 
 
 def _ignore_interrupt() -> None:
@@ -381,6 +411,9 @@ class RecipeRun:
             agent = self._agent(driver)
             todo = [dataclasses.replace(chunk, driver=_Driver(
                 self._config, agent.env_actor.state_dict())) for chunk in todo]
+        if recipe.teacher is not None and todo:
+            teacher = self._teacher()
+            todo = [dataclasses.replace(chunk, teacher=teacher) for chunk in todo]
         total = sum(chunk.episodes for chunk in chunks)
         finished = (_on_ray(todo, self.ray_address) if self.backend == "ray"
                     else _in_processes(todo, recipe.envs))
@@ -426,6 +459,25 @@ class RecipeRun:
             episodes=sum(len(chunk.success) for chunk in data),
             updates=clones * self.recipe.clone.steps,
             wall_clock_s=sum(record["seconds"] for record in done.values()) + seconds)
+
+    def _teacher(self) -> _Driver:
+        """The recipe's teacher, whole: its config and its actor's weights."""
+        assert self.recipe.teacher is not None
+        folder = run_or_policy(self.recipe.teacher)
+        if not (folder / CONFIG_FILE).is_file():
+            raise RecipeError(f"teacher {self.recipe.teacher!r} is neither a shipped policy "
+                              f"({list(policy_names())}) nor a run folder with {CONFIG_FILE}.")
+        config = load_config(folder / CONFIG_FILE)
+        student = self.recipe.policy.env
+        differs = [name for name in ("wire", "tip", "fidelity")
+                   if getattr(config.env, name) != getattr(student, name)]
+        if differs:
+            raise RecipeError(f"teacher {self.recipe.teacher!r} ran another {differs} than "
+                              f"the student's policy.env; give the student the teacher's.")
+        # The suite's action: [insertion, rotation] increments in [-1, 1].
+        agent = _teacher_agent(config, Bounded(-1.0, 1.0, shape=(2,), dtype=torch.float32))
+        checkpoint.load_checkpoint(folder, agent)
+        return _Driver(config, agent.env_actor.state_dict())
 
     @property
     def _config(self) -> TrainConfig:

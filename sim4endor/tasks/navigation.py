@@ -439,13 +439,24 @@ class NavigationTask(base.Task):
 
     def get_observation(self, physics: control.Physics) -> Mapping[str, np.ndarray]:
         """Returns the configured observation entries, in order (SI units)."""
+        return self.observe(physics, self.config.observations)
+
+    def observe(self, physics: control.Physics, entries: tuple[str, ...]
+                ) -> Mapping[str, np.ndarray]:
+        """Returns any observation entries of the current state, in order: the configured
+        ones (:meth:`get_observation`), or a teacher's privileged set beside a student's
+        (:mod:`sim4endor.rl.imitation`). The cath lab's entries need the lab configured."""
         obs: collections.OrderedDict[str, np.ndarray] = collections.OrderedDict()
-        names = set(self.config.observations)
+        names = set(entries)
+        if names & _CATHLAB_ENTRIES and self._cathlab is None:
+            raise TaskConfigError(f"Observation entries {sorted(names & _CATHLAB_ENTRIES)} "
+                                  "need the cath lab, which this task does not observe.")
         view = self._tip_view(physics) if _TIP_VIEW_ENTRIES & names else None
         # The cath lab's sensors see the imaged wire, the load cell and the clock, no more.
-        lab = None if self._cathlab is None else self._cathlab.observe(
-            Measurement(physics.time(), physics.wire_points(), physics.insertion_force()))
-        for name in self.config.observations:
+        lab = None if self._cathlab is None or not names & _CATHLAB_ENTRIES else \
+            self._cathlab.observe(Measurement(physics.time(), physics.wire_points(),
+                                              physics.insertion_force()))
+        for name in entries:
             if name in _CATHLAB_ENTRIES:
                 assert lab is not None  # built whenever a cath-lab entry is configured
                 obs[name] = _cathlab_entry(name, lab)
