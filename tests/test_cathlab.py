@@ -224,7 +224,8 @@ def test_a_phantom_lies_face_up_under_the_c_arm() -> None:
         "random": 0, "observations": "deployable",
         "cathlab": {"views": ((0.0, 0.0),), "view_jitter": 0.0}})
     env.reset()
-    beams = _beams(env.task._cathlab)  # type: ignore[arg-type]
+    assert env.task.cathlab is not None
+    beams = _beams(env.task.cathlab)
     np.testing.assert_allclose(beams, [[0.0, 0.0, 1.0]], atol=1e-12)  # AP: face on
 
 

@@ -155,6 +155,7 @@ class CathLab:
         self._furthest = 0.0
         self._furthest_time = 0.0
         self._view: tuple[float, CathLabView] | None = None
+        self._tracked_tip = np.zeros((planes, 2))
 
     @staticmethod
     def _separated(a: FloatArray, b: FloatArray) -> bool:
@@ -184,13 +185,28 @@ class CathLab:
         arc = arc_lengths(route)
         self._route_arc = np.linspace(0.0, arc[-1], math.ceil(arc[-1] / _ROADMAP_STEP) + 1)
         self._route = _along(route, self._route_arc)
-        self._roadmap = np.einsum("pij,mj->pmi", self._bases, self._route) + \
+        self._roadmap = self.image(self._route) + \
             self._random.normal(0.0, self.sensors.roadmap_error, (self.planes, 1, 2))
         self._frames.clear()
         self._next_pulse = -math.inf
         self._match = self._furthest = self._furthest_time = 0.0
         self._frames_matched = False
         self._view = None
+
+    def image(self, points: FloatArray) -> FloatArray:
+        """(planes, N, 2): vessel-frame points (m) as this episode's planes show them."""
+        return np.einsum("pij,mj->pmi", self._bases, points)
+
+    @property
+    def tracked_tip(self) -> FloatArray:
+        """(planes, 2): where on each plane the last observation's tracked tip lies (m), which
+        the entries are relative to (for drawing; a policy is not told it)."""
+        return self._tracked_tip
+
+    @property
+    def roadmap(self) -> FloatArray:
+        """(planes, M, 2): this episode's roadmap on each plane, with its registration error."""
+        return self._roadmap
 
     def _draw_beam(self) -> FloatArray:
         views, jitter = self.sensors.views, self.sensors.view_jitter
@@ -206,7 +222,7 @@ class CathLab:
         if measurement.time >= self._next_pulse:
             self._pulse(measurement)
         track, found_at = self._shown(measurement.time)
-        tip = track[:, -1]
+        tip = self._tracked_tip = track[:, -1]
         self._match_roadmap(tip)
         if self._match > self._furthest + STALL_PROGRESS:
             self._furthest, self._furthest_time = self._match, measurement.time
@@ -231,7 +247,7 @@ class CathLab:
         # The pulses run on their own clock but are imaged at control steps (the only
         # instants the state is known): the next at the first step on or after the next tick.
         self._next_pulse = (math.floor(measurement.time / period + 1e-9) + 1) * period - 1e-9
-        images = np.einsum("pij,mj->pmi", self._bases, measurement.wire_points)
+        images = self.image(measurement.wire_points)
         for plane, image in enumerate(images):
             # The first frame of an episode is always tracked: the operator starts on one.
             if first or self._random.uniform() >= self.sensors.dropout:

@@ -188,6 +188,11 @@ class NavigationTask(base.Task):
         return self._anatomy
 
     @property
+    def cathlab(self) -> CathLab | None:
+        """The cath lab's sensor model, when its entries are observed."""
+        return self._cathlab
+
+    @property
     def target(self) -> str:
         """The current episode's target label."""
         return self._target
