@@ -121,8 +121,7 @@ from sim4endor.tasks import (
     random_coronary,
 )
 from sim4endor.tasks.anatomy import compile_anatomy
-from sim4endor.tasks.config import LPS_AXES, PHANTOM_AXES
-from sim4endor.tasks.randomisation import RANDOMISATION, Randomisation
+from sim4endor.tasks.config import LPS_AXES, PHANTOM_AXES, RANDOMISATION, Randomisation
 
 ALL_TASKS = registry.ALL_TASKS
 BENCHMARKING = registry.BENCHMARKING
@@ -210,7 +209,7 @@ def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig
 
 
 def _randomisation(value: Any) -> Randomisation | None:
-    """task_kwargs ``randomise``: true for :data:`~sim4endor.tasks.randomisation.RANDOMISATION`,
+    """task_kwargs ``randomise``: true for :data:`~sim4endor.tasks.config.RANDOMISATION`,
     a mapping of its fields for other ranges, false (the default) for none."""
     if value is True:
         return RANDOMISATION

@@ -10,7 +10,8 @@ import pytest
 
 from sim4endor import suite
 from sim4endor.tasks import CathLabConfig, TaskConfigError
-from sim4endor.tasks.randomisation import RANDOMISATION, DriverModel, Randomisation
+from sim4endor.tasks.config import RANDOMISATION, Randomisation
+from sim4endor.tasks.randomisation import DriverModel, draw_driver, draw_sensors
 
 
 def test_the_default_driver_passes_commands_through() -> None:
@@ -47,8 +48,8 @@ def test_backlash_holds_the_roll_until_the_motor_crosses_the_dead_band() -> None
 def test_each_episode_draws_within_the_ranges() -> None:
     random = np.random.RandomState(0)
     for _ in range(50):
-        sensors = RANDOMISATION.cathlab(CathLabConfig(), random)
-        driver = RANDOMISATION.driver(random)
+        sensors = draw_sensors(RANDOMISATION, CathLabConfig(), random)
+        driver = draw_driver(RANDOMISATION, random)
         for name in ("tracking_noise", "latency", "dropout", "roadmap_error"):
             low, high = getattr(RANDOMISATION, name)
             assert low <= getattr(sensors, name) <= high, name
@@ -58,7 +59,8 @@ def test_each_episode_draws_within_the_ranges() -> None:
 
 
 @pytest.mark.parametrize("kwargs", [{"latency": (0.2, 0.1)}, {"dropout": (0.0, 1.0)},
-                                    {"frame_rates": ()}, {"insertion_slip": (-0.1, 0.1)}])
+                                    {"frame_rates": ()}, {"insertion_slip": (-0.1, 0.1)},
+                                    {"latency": (0.1,)}])
 def test_bad_ranges_are_refused(kwargs: dict[str, Any]) -> None:
     with pytest.raises(TaskConfigError, match="Randomisation"):
         Randomisation(**kwargs)
@@ -101,6 +103,11 @@ def test_a_delayed_driver_holds_the_wire_at_the_start() -> None:
 def test_randomise_must_be_a_switch_or_ranges(value: Any) -> None:
     with pytest.raises(TaskConfigError, match="randomise"):
         suite.load("simplified_phantom", "task_a", {"randomise": value})
+
+
+def test_ranges_from_yaml_become_tuples() -> None:
+    from_yaml: Any = [0.1, 0.2]
+    assert Randomisation(latency=from_yaml).latency == (0.1, 0.2)
 
 
 def test_the_switch_is_a_command_line_flag_and_a_config_field() -> None:

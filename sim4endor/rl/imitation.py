@@ -66,8 +66,9 @@ class Episodes:
             (``label``), ``(steps,)``.
         episode: the episode index of every step, ``(steps,)``.
         success: whether each episode reached its target, ``(episodes,)``.
-        label: the action to learn at every step: the action taken, or the teacher's where
-            a teacher labels the steps another policy drove, ``(steps, 2)``.
+        label: the action to learn at every step, ``(steps, 2)``: the teacher's where a
+            teacher labels the steps another policy drove; ``None`` (and in chunks saved
+            before teachers): the action taken.
     """
 
     observation: np.ndarray
@@ -75,7 +76,11 @@ class Episodes:
     expert: np.ndarray
     episode: np.ndarray
     success: np.ndarray
-    label: np.ndarray
+    label: np.ndarray = None  # type: ignore[assignment]  # filled in: the action taken
+
+    def __post_init__(self) -> None:
+        if self.label is None:
+            object.__setattr__(self, "label", self.action)
 
     def save(self, path: Path) -> None:
         """Writes a compressed ``.npz``, atomically (a file that exists is complete)."""
@@ -87,9 +92,8 @@ class Episodes:
     def load(cls, path: Path) -> Episodes:
         """Reads what :meth:`save` wrote."""
         with np.load(path) as data:
-            fields = {name: data[name] for name in data.files}
-        fields.setdefault("label", fields["action"])  # saved before teachers: the expert's
-        return cls(**{field.name: fields[field.name] for field in dataclasses.fields(cls)})
+            return cls(**{field.name: data[field.name] for field in dataclasses.fields(cls)
+                          if field.name in data.files})
 
     @property
     def labels(self) -> tuple[np.ndarray, np.ndarray]:

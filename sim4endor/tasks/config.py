@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,9 +18,6 @@ from sim4endor.observations import (  # noqa: F401  (re-exported: the task's voc
     OPTIONAL_OBSERVATIONS,
 )
 from sim4endor.rewards import RewardConfig
-
-if TYPE_CHECKING:
-    from sim4endor.tasks.randomisation import Randomisation
 
 
 class TaskConfigError(Sim4EndoRError, ValueError):
@@ -299,6 +296,56 @@ def _unit(vector: tuple[float, float, float]) -> np.ndarray:
     if norm == 0.0:
         raise TaskConfigError(f"PixelsConfig: direction {vector} has zero length.")
     return v / norm
+
+
+@dataclass(frozen=True)
+class Randomisation:
+    """Domain randomisation for sim-to-real (:mod:`sim4endor.tasks.randomisation`): the
+    ranges drawn per episode (each ``(lowest, highest)``, drawn uniformly).
+
+    Attributes:
+        tracking_noise: Of each tracked image coordinate's standard deviation (m).
+        latency: Of the track's latency (s).
+        dropout: Of the fraction of frames the tracker loses.
+        frame_rates: Pulse rates to draw from (1/s).
+        roadmap_error: Of the roadmap registration's standard deviation (m).
+        action_delay: Of the control steps a command waits before the driver moves (whole
+            steps, both ends included).
+        roll_backlash: Of the roll's dead band (rad).
+        insertion_slip: Of the fraction of each commanded advance lost to slip.
+    """
+
+    tracking_noise: tuple[float, float] = (0.2e-3, 1.0e-3)
+    latency: tuple[float, float] = (0.05, 0.25)
+    dropout: tuple[float, float] = (0.0, 0.05)
+    frame_rates: tuple[float, ...] = (7.5, 15.0)
+    roadmap_error: tuple[float, float] = (0.5e-3, 2.0e-3)
+    action_delay: tuple[int, int] = (0, 2)
+    roll_backlash: tuple[float, float] = (0.0, math.radians(2.0))
+    insertion_slip: tuple[float, float] = (0.0, 0.1)
+
+    def __post_init__(self) -> None:
+        for field_ in dataclasses.fields(self):  # as read from YAML or JSON
+            if isinstance(getattr(self, field_.name), list):
+                object.__setattr__(self, field_.name, tuple(getattr(self, field_.name)))
+        for name in ("tracking_noise", "latency", "dropout", "roadmap_error", "action_delay",
+                     "roll_backlash", "insertion_slip"):
+            if len(getattr(self, name)) != 2:
+                raise TaskConfigError(f"Randomisation.{name} must be (lowest, highest), got "
+                                      f"{getattr(self, name)!r}.")
+            low, high = getattr(self, name)
+            if not 0 <= low <= high:
+                raise TaskConfigError(f"Randomisation.{name} must be (lowest, highest) with "
+                                      f"0 <= lowest <= highest, got {(low, high)!r}.")
+        if self.dropout[1] >= 1.0 or self.insertion_slip[1] >= 1.0:
+            raise TaskConfigError("Randomisation: dropout and insertion_slip must stay below 1.")
+        if not self.frame_rates or min(self.frame_rates) <= 0:
+            raise TaskConfigError(f"Randomisation.frame_rates must be positive pulse rates, "
+                                  f"got {self.frame_rates!r}.")
+
+
+#: The ranges of ``task_kwargs={"randomise": True}``.
+RANDOMISATION = Randomisation()
 
 
 @dataclass(frozen=True)

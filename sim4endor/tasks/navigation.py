@@ -37,7 +37,7 @@ from sim4endor.tasks.anatomy import Anatomy, AnatomySource
 from sim4endor.tasks.cathlab import CathLab, CathLabView, Measurement
 from sim4endor.tasks.config import NavigationConfig, TaskConfigError
 from sim4endor.tasks.fluoroscopy import Fluoroscope
-from sim4endor.tasks.randomisation import DriverModel
+from sim4endor.tasks.randomisation import DriverModel, draw_driver, draw_sensors
 from sim4endor.tasks.tip_frame import PathToTarget, TipView, tip_view
 from sim4endor.vessels.centerline import INLET_LABEL, Projection
 
@@ -256,13 +256,13 @@ class NavigationTask(base.Task):
         self._evaluation = None
         randomisation = self.config.randomisation
         if randomisation is not None:
-            self._driver = randomisation.driver(self.random)
+            self._driver = draw_driver(randomisation, self.random)
             self._driver.reset(self._insertion, self._rotation)
         if self._cathlab is not None:
             graph = self._anatomy.vessel.centerline
             route = self.path_to_target().route(graph.labels[INLET_LABEL])
             sensors = (None if randomisation is None
-                       else randomisation.cathlab(self.config.cathlab, self.random))
+                       else draw_sensors(randomisation, self.config.cathlab, self.random))
             self._cathlab.reset(graph.nodes[route], self.random, sensors)
 
     def _start_off_path(self, physics: control.Physics, depths: tuple[float, float]) -> None:

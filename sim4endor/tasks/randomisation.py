@@ -21,73 +21,31 @@ from __future__ import annotations
 
 import collections
 import dataclasses
-import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from sim4endor.tasks.config import CathLabConfig, TaskConfigError
+from sim4endor.tasks.config import CathLabConfig, Randomisation
 
 
-@dataclass(frozen=True)
-class Randomisation:
-    """The ranges drawn per episode (each ``(lowest, highest)``, drawn uniformly).
-
-    Attributes:
-        tracking_noise: Of each tracked image coordinate's standard deviation (m).
-        latency: Of the track's latency (s).
-        dropout: Of the fraction of frames the tracker loses.
-        frame_rates: Pulse rates to draw from (1/s).
-        roadmap_error: Of the roadmap registration's standard deviation (m).
-        action_delay: Of the control steps a command waits before the driver moves (whole
-            steps, both ends included).
-        roll_backlash: Of the roll's dead band (rad).
-        insertion_slip: Of the fraction of each commanded advance lost to slip.
-    """
-
-    tracking_noise: tuple[float, float] = (0.2e-3, 1.0e-3)
-    latency: tuple[float, float] = (0.05, 0.25)
-    dropout: tuple[float, float] = (0.0, 0.05)
-    frame_rates: tuple[float, ...] = (7.5, 15.0)
-    roadmap_error: tuple[float, float] = (0.5e-3, 2.0e-3)
-    action_delay: tuple[int, int] = (0, 2)
-    roll_backlash: tuple[float, float] = (0.0, math.radians(2.0))
-    insertion_slip: tuple[float, float] = (0.0, 0.1)
-
-    def __post_init__(self) -> None:
-        for name in ("tracking_noise", "latency", "dropout", "roadmap_error", "action_delay",
-                     "roll_backlash", "insertion_slip"):
-            low, high = getattr(self, name)
-            if not 0 <= low <= high:
-                raise TaskConfigError(f"Randomisation.{name} must be (lowest, highest) with "
-                                      f"0 <= lowest <= highest, got {(low, high)!r}.")
-        if self.dropout[1] >= 1.0 or self.insertion_slip[1] >= 1.0:
-            raise TaskConfigError("Randomisation: dropout and insertion_slip must stay below 1.")
-        if not self.frame_rates or min(self.frame_rates) <= 0:
-            raise TaskConfigError(f"Randomisation.frame_rates must be positive pulse rates, "
-                                  f"got {self.frame_rates!r}.")
-
-    def cathlab(self, base: CathLabConfig, random: np.random.RandomState) -> CathLabConfig:
-        """``base`` with this episode's tracking drawn."""
-        return dataclasses.replace(
-            base,
-            tracking_noise=random.uniform(*self.tracking_noise),
-            latency=random.uniform(*self.latency),
-            dropout=random.uniform(*self.dropout),
-            frame_rate=float(self.frame_rates[random.randint(len(self.frame_rates))]),
-            roadmap_error=random.uniform(*self.roadmap_error),
-        )
-
-    def driver(self, random: np.random.RandomState) -> DriverModel:
-        """This episode's driver."""
-        low, high = self.action_delay
-        return DriverModel(delay=int(random.randint(low, high + 1)),
-                           backlash=random.uniform(*self.roll_backlash),
-                           slip=random.uniform(*self.insertion_slip))
+def draw_sensors(ranges: Randomisation, base: CathLabConfig,
+                 random: np.random.RandomState) -> CathLabConfig:
+    """``base`` with this episode's tracking drawn from ``ranges``."""
+    return dataclasses.replace(
+        base,
+        tracking_noise=random.uniform(*ranges.tracking_noise),
+        latency=random.uniform(*ranges.latency),
+        dropout=random.uniform(*ranges.dropout),
+        frame_rate=float(ranges.frame_rates[random.randint(len(ranges.frame_rates))]),
+        roadmap_error=random.uniform(*ranges.roadmap_error),
+    )
 
 
-#: The ranges of ``task_kwargs={"randomise": True}``.
-RANDOMISATION = Randomisation()
+def draw_driver(ranges: Randomisation, random: np.random.RandomState) -> DriverModel:
+    """This episode's driver, drawn from ``ranges``."""
+    low, high = ranges.action_delay
+    return DriverModel(delay=int(random.randint(low, high + 1)),
+                       backlash=random.uniform(*ranges.roll_backlash),
+                       slip=random.uniform(*ranges.insertion_slip))
 
 
 class DriverModel:
