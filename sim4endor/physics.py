@@ -32,6 +32,7 @@ from dm_control.rl import control
 from numpy.typing import NDArray
 
 from sim4endor.models import constants as names
+from sim4endor.models.motion import WallMotion
 from sim4endor.models.scene import SceneConfig, build_model
 from sim4endor.vessels import Vessel
 
@@ -87,6 +88,9 @@ class GuidewirePhysics(dm_mujoco.Physics):
     legacy_step = False
     #: (data.time after the last :meth:`step` call, the tip's mean wall force over it).
     _tip_force_mean: tuple[float, float] = (math.nan, 0.0)
+    #: The heart's motion that places the wall's chunks before every physics step (a scene
+    #: built with ``moving_walls``); None: the wall stands still.
+    _wall_motion: WallMotion | None = None
 
     @classmethod
     def from_vessel(
@@ -123,7 +127,9 @@ class GuidewirePhysics(dm_mujoco.Physics):
         the time goes").
         """
         if not share_model:
-            return super().copy()
+            copied = super().copy()
+            copied._wall_motion = self._wall_motion
+            return copied
         # dm_control's copy and _reload_from_data, with the model's indexers reused: they
         # read the model's arrays, which the copy shares.
         new = type(self).__new__(type(self))
@@ -141,6 +147,7 @@ class GuidewirePhysics(dm_mujoco.Physics):
             model=self.named.model,
             data=named_index.struct_indexer(new.data, "mjdata", new._axis_indexers[1]))
         new._index_cache = self._indices()
+        new._wall_motion = self._wall_motion
         return new
 
     def _model_axis_indexers(self) -> tuple[mujoco.MjModel, dict[str, Any]]:
@@ -312,6 +319,41 @@ class GuidewirePhysics(dm_mujoco.Physics):
         indices = self._indices()
         return self._contact_sensor_total((indices.tip_sensor,), indices.tip_start)
 
+    # ---------------------------------------------------------------------- moving walls
+    def wall_chunk_centroids(self) -> FloatArray:
+        """(K, 3) each moving wall chunk's centre at rest (m), in mocap order; (0, 3) for a
+        static wall."""
+        model = self.model.ptr
+        bodies = np.flatnonzero(model.body_mocapid >= 0)
+        bodies = bodies[np.argsort(model.body_mocapid[bodies])]
+        return np.array([model.geom_pos[model.geom_bodyid == b].mean(axis=0) for b in bodies]
+                        ).reshape(-1, 3)
+
+    def set_wall_motion(self, motion: WallMotion | None) -> None:
+        """Moves the wall's chunks with ``motion`` from now on (None: leaves them at rest)."""
+        if motion is not None and len(motion.centroids) != self.model.nmocap:
+            raise ValueError(f"The wall motion moves {len(motion.centroids)} chunks; this "
+                             f"scene has {self.model.nmocap} (built with moving_walls?).")
+        self._wall_motion = motion
+        self._place_walls()
+
+    @property
+    def wall_motion(self) -> WallMotion | None:
+        """The heart's motion that moves the wall, if any."""
+        return self._wall_motion
+
+    def _place_walls(self) -> None:
+        data = self.data.ptr
+        if self._wall_motion is None:
+            data.mocap_pos[:] = 0.0
+            data.mocap_quat[:] = (1.0, 0.0, 0.0, 0.0)
+            return
+        positions, rotation = self._wall_motion.pose(float(data.time))
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, rotation.ravel())
+        data.mocap_pos[:] = positions
+        data.mocap_quat[:] = quat
+
     def step(self, nstep: int = 1) -> None:
         """Advances ``nstep`` physics steps and keeps the tip's mean wall force over them
         (:meth:`mean_tip_contact_force`)."""
@@ -325,13 +367,18 @@ class GuidewirePhysics(dm_mujoco.Physics):
         total = 0.0
         if self.legacy_step:
             for _ in range(nstep):
+                if self._wall_motion is not None:
+                    self._place_walls()
                 super().step()
                 total += sensed_tip_force()
         else:
             # One state check for all steps, as dm_control's own step(nstep) does.
             model, data = self.model.ptr, self.data.ptr
+            moving = self._wall_motion is not None
             with self.check_invalid_state():
                 for _ in range(nstep):
+                    if moving:
+                        self._place_walls()
                     mujoco.mj_step(model, data)
                     total += sensed_tip_force()
         self._tip_force_mean = (float(self.data.time), total / nstep)
@@ -354,7 +401,8 @@ class GuidewirePhysics(dm_mujoco.Physics):
         """Sums wall contact sensors: the wall force on the wire from its body
         ``first_index`` (0: proximal) on. ``sensed``: what the sensors hold even with legacy
         stepping (the state the last physics step started from, as without it)."""
-        if sensed or not self.legacy_step:
+        # The sensors count the world body's hulls: a moving wall's chunks are other bodies.
+        if (sensed or not self.legacy_step) and not self.model.nmocap:
             # Filled by mj_step for the same contacts and forces that _wall_contacts() reads:
             # slots of [count, normal, tangent, tangent].
             total = 0.0
@@ -366,7 +414,8 @@ class GuidewirePhysics(dm_mujoco.Physics):
                 total += float(slots[1 : 4 * found : 4].sum())
             else:
                 return total
-        # Legacy stepping (the sensor describes the previous state) or more contacts than slots.
+        # Legacy stepping (the sensor describes the previous state), a moving wall or more
+        # contacts than slots.
         forces, bodies = self._wall_contacts()
         return float(forces[np.isin(bodies, self._indices().wire_bodies[first_index:])].sum())
 

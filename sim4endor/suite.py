@@ -99,6 +99,7 @@ from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import fidelity as fidelities
 from sim4endor.models import wires
 from sim4endor.models.guidewire import GuidewireConfig
+from sim4endor.models.motion import MotionRanges
 from sim4endor.models.scene import SceneConfig
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.rewards import RewardConfig
@@ -134,11 +135,13 @@ _COMMON_KWARGS = (
     "random", "reward", "curvature_weight", "observations", "action", "termination",
     "initial_state", "pixels", "cathlab", "randomise", "wire", "fidelity",
 )
+#: task_kwargs of the domains whose trees a heart carries (the phantoms lie on a table).
+_HEART_KWARGS = ("motion",)
 _DOMAIN_KWARGS: Mapping[str, tuple[str, ...]] = {
-    "vessel": ("vessel", "target"),
-    "random_coronary": ("pool_size", "pool_seed", "cache_dir"),
+    "vessel": ("vessel", "target", *_HEART_KWARGS),
+    "random_coronary": ("pool_size", "pool_seed", "cache_dir", *_HEART_KWARGS),
     "coronary": ("pool_size", "pool_seed", "side", "anatomy", "vary_wire", "target",
-                 "target_weights", "cache_dir"),
+                 "target_weights", "cache_dir", *_HEART_KWARGS),
 }
 
 
@@ -205,7 +208,22 @@ def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig
         pixels=_config(kwargs.get("pixels", PixelsConfig()), PixelsConfig, "pixels"),
         cathlab=_config(kwargs.get("cathlab", cathlab), CathLabConfig, "cathlab", cathlab),
         randomisation=_randomisation(kwargs.get("randomise", False)),
+        motion=_motion(kwargs.get("motion", False)),
     )
+
+
+def _motion(value: Any) -> MotionRanges | None:
+    """task_kwargs ``motion``: true for a beating and breathing heart with the literature's
+    ranges (:class:`~sim4endor.models.motion.MotionRanges`), a mapping of its fields for
+    others, false (the default) for a still one."""
+    if value is True:
+        return MotionRanges()
+    if value is False or value is None:
+        return None
+    if isinstance(value, Mapping):
+        return _config(value, MotionRanges, "motion")
+    raise TaskConfigError(f"task_kwargs motion must be true, false or a mapping of "
+                          f"MotionRanges' ranges, got {value!r}.")
 
 
 def _randomisation(value: Any) -> Randomisation | None:
@@ -360,7 +378,8 @@ def wire_config(domain_name: str, task_kwargs: Mapping[str, Any] | None = None
 
 
 def _scene(kwargs: Mapping[str, Any], domain_name: str) -> SceneConfig:
-    return SceneConfig(wire=wire_config(domain_name, kwargs))
+    return SceneConfig(wire=wire_config(domain_name, kwargs),
+                       moving_walls=_motion(kwargs.get("motion", False)) is not None)
 
 
 def _termination(entry: registry.TaskEntry, kwargs: Mapping[str, Any]) -> TerminationConfig:

@@ -26,10 +26,11 @@ from sim4endor.tasks.cathlab import (
     image_basis,
 )
 
-#: The physics accessors a cath lab's sensors stand for: the imaged wire, the driver's
-#: encoders and load cell, the clock.
-_MEASURABLE_PHYSICS = {"time", "wire_points", "insertion_depth", "rotation_angle",
-                       "insertion_force"}
+#: The physics accessors a cath lab's sensors stand for: the imaged wire (and where the
+#: breath has carried it in the lab: ``wall_motion``'s ``lab_offset``), the driver's encoders
+#: and load cell, the clock.
+_MEASURABLE_PHYSICS = {"time", "wire_points", "wall_motion", "insertion_depth",
+                       "rotation_angle", "insertion_force"}
 _EXACT = CathLabConfig(views=((0.0, 0.0),), view_jitter=0.0, frame_rate=20.0, latency=0.0,
                        tracking_noise=0.0, dropout=0.0, load_cell_noise=0.0, roadmap_error=0.0)
 

@@ -14,7 +14,7 @@ one core on every shipped anatomy and on generated coronary trees (``--all``).
 Usage:
     python experiments/benchmarks/env_throughput.py [--domain D --task T] [--steps 400]
         [--cpu 0] [--json]
-    python experiments/benchmarks/env_throughput.py --all [--cpu 0] [--json]
+    python experiments/benchmarks/env_throughput.py --all [--cpu 0] [--json] [--motion]
 
 ``--all`` measures every task of ``suite.ALL_TASKS`` (the shipped phantoms, the random and
 the coronary trees) and prints one table row per task (``--json``: one line per task).
@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from sim4endor import _json as strict_json
-from sim4endor import suite
+from sim4endor import registry, suite
 from sim4endor.envs.gym import NavigationEnv
 from sim4endor.models import fidelity as fidelities
 from sim4endor.physics import GuidewirePhysics
@@ -41,8 +41,8 @@ from sim4endor.physics import GuidewirePhysics
 #: A step of the bare-physics replay: a copy of the physics just after a reset (None within an
 #: episode) and the driver targets (insertion m, rotation rad).
 Command = tuple[GuidewirePhysics | None, tuple[float, float]]
-#: Task arguments besides the seed: ``wire`` (a preset name or a mapping of fields) and
-#: ``fidelity``, where given (the domain's defaults otherwise).
+#: Task arguments besides the seed: ``wire`` (a preset name or a mapping of fields),
+#: ``fidelity`` and ``motion``, where given (the domain's defaults otherwise).
 Extra = dict[str, Any]
 #: Resets before the timed loops: a pool of 8 trees drawn 40 times misses one with
 #: probability 8 x (7/8)^40 = 0.4 %.
@@ -207,6 +207,7 @@ def measure(domain: str, task: str, steps: int, repeats: int, extra: Extra | Non
         "task": task,
         "wire": extra.get("wire"),
         "fidelity": extra.get("fidelity"),
+        "motion": bool(extra.get("motion")),
         "env_steps": steps,
         "physics_steps_per_env_step": run.n_sub_steps,
         "timestep_ms": 1e3 * run.timestep,
@@ -255,6 +256,9 @@ def main() -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON line per task")
     parser.add_argument("--fidelity", choices=fidelities.names(), default=None,
                         help="the wire's numerical settings (default: each domain's)")
+    parser.add_argument("--motion", action="store_true",
+                        help="a beating and breathing heart (coronary trees and vessel "
+                             "folders; with --all, the tasks that take it)")
     parser.add_argument(
         "--wire", type=_wire, default=None,
         help="the wire of every task instead of its default: a preset name, or a JSON "
@@ -262,7 +266,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.cpu is not None:
         os.sched_setaffinity(0, {args.cpu})
-    extra = {key: value for key, value in (("wire", args.wire), ("fidelity", args.fidelity))
+    extra = {key: value for key, value in (("wire", args.wire), ("fidelity", args.fidelity),
+                                           ("motion", args.motion or None))
              if value is not None}
     if not args.all:
         result = measure(args.domain, args.task, args.steps, args.repeats, extra)
@@ -276,6 +281,8 @@ def main() -> None:
         print("| " + " | ".join(heading for heading, _, _ in _TABLE) + " |")
         print("|" + "---|" * len(_TABLE))
     for domain, task in suite.ALL_TASKS:
+        if args.motion and registry.TAG_PHANTOM in registry.find(domain, task).tags:
+            continue  # a phantom lies on a table
         result = measure(domain, task, args.steps, args.repeats, extra)
         if args.json:
             print(strict_json.dumps(result), flush=True)

@@ -80,6 +80,10 @@ def add_task_arguments(parser: argparse.ArgumentParser, *, evaluation_split: boo
                        help="observation set: paper (default; tip position and velocity), "
                             "generalist (tip-frame entries, for any anatomy) or deployable "
                             "(what a robot in a cath lab measures)")
+    group.add_argument("--motion", action="store_const", const=True,
+                       help="coronary trees and vessel folders: a beating and breathing "
+                            "heart moves the vessel walls (heart and breathing rates, "
+                            "amplitudes and phases drawn per episode; docs/tasks/cathlab.md)")
     group.add_argument("--randomise", action="store_const", const=True,
                        help="domain randomisation for sim-to-real: the tracking's noise, "
                             "latency and lost frames, the action delay, the driver's backlash "
@@ -98,7 +102,7 @@ def task_arguments(args: argparse.Namespace) -> dict[str, Any]:
     config still finds it from another working directory.
     """
     names = ("vessel", "target", "wire", "tip", "fidelity", "pool_seed", "pool_size",
-             "eval_pool_seed", "observations", "randomise")
+             "eval_pool_seed", "observations", "randomise", "motion")
     given = {name: getattr(args, name, None) for name in names}
     if given["vessel"] is not None and Path(given["vessel"]).exists():
         given["vessel"] = str(Path(given["vessel"]).resolve())

@@ -231,7 +231,10 @@ def render_episode(args: argparse.Namespace) -> int:
 
     def mark_target(_physics: Any, scene: mujoco.MjvScene) -> None:
         add_wire(scene, env.physics.wire_points())
-        add_sphere(scene, env.task.target_position, 2.0e-3, TARGET_RGBA)
+        target, motion = env.task.target_position, env.physics.wall_motion
+        if motion is not None:
+            target = motion.from_rest(target, env.physics.time())
+        add_sphere(scene, target, 2.0e-3, TARGET_RGBA)
 
     # The offscreen buffer is allocated from the model's size when the first frame renders.
     buffer = env.physics.model.vis.global_
@@ -241,6 +244,8 @@ def render_episode(args: argparse.Namespace) -> int:
                            scene_callback=mark_target)
     camera.set_pose(**top_down_pose(env.task.anatomy.vessel.centerline.nodes))
 
+    # A moving wall is its hulls (group 3): the lumen's display mesh (group 1) stands still.
+    option = wall_view(env) if env.physics.wall_motion is not None else None
     frames: list[Any] = []
     total, step = 0.0, 0
     max_steps = step_budget(env, args.max_steps)
@@ -250,7 +255,8 @@ def render_episode(args: argparse.Namespace) -> int:
         reward = 0.0 if timestep.reward is None else float(timestep.reward)
         total += reward
         overlay = TextOverlay(body=status_text(env, step, reward, total))
-        frames.append(np.array(camera.render(overlays=[overlay])))  # render reuses its buffer
+        # render reuses its buffer
+        frames.append(np.array(camera.render(overlays=[overlay], scene_option=option)))
         if timestep.last() or step >= max_steps:
             break
         timestep = env.step(policy(state_vector(timestep.observation)))
@@ -265,6 +271,15 @@ def render_episode(args: argparse.Namespace) -> int:
     print(f"{out}: {episode_outcome(env, timestep, step)}, return {total:+.2f}")  # noqa: T201
     env.physics.free()  # release the GL context now, not in dm_control's atexit hook
     return 0
+
+
+def wall_view(env: NavigationEnvironment) -> Any:
+    """Scene options that draw the wall's collision hulls instead of the lumen's mesh."""
+    from dm_control.mujoco import wrapper
+
+    option = wrapper.core.MjvOption()
+    option.geomgroup[1], option.geomgroup[3] = 0, 1
+    return option
 
 
 def step_budget(env: NavigationEnvironment, requested: int | None) -> int:

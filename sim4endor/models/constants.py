@@ -72,3 +72,9 @@ def wall_contact_sensor(first_body: int) -> str:
 def wire_geom(index: int) -> str:
     """Returns the name of the contact capsule of wire body ``index``."""
     return f"{WIRE_PREFIX}geom_{index:03d}"
+
+
+def wall_chunk_body(index: int) -> str:
+    """Returns the name (inside the vessel's prefix) of the mocap body that carries chunk
+    ``index`` of a moving wall's hulls (:mod:`sim4endor.models.motion`)."""
+    return f"wall_chunk_{index:03d}"

@@ -17,6 +17,7 @@ import copy
 import dataclasses
 import functools
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -35,10 +36,12 @@ from sim4endor.models.guidewire import (
     add_guidewire,
     chain_starts,
 )
+from sim4endor.models.motion import CHUNK_SIZE
 from sim4endor.vessels import CENTERLINE_FILE, Vessel
 from sim4endor.vessels.axis import branch_chains
 from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph, arc_lengths
 from sim4endor.vessels.manifest import MANIFEST_FILE
+from sim4endor.vessels.mjcf_writer import WALL_CLASS
 
 #: How wide a tapered-core wire's pre-bent tip may be, in (inlet bore radius − wire radius),
 #: where the wire starts (a coronary tree's guide catheter). A soft tip starts straight in the
@@ -82,11 +85,14 @@ class SceneConfig:
         driver: Driver and sheath parameters.
         timestep: Physics time step (s); ``None`` keeps ``mjcf/options.xml`` (5 ms), or the
             wire's ``max_timestep`` where that is shorter.
+        moving_walls: The wall's hulls in chunks of mocap bodies, which a beating and
+            breathing heart moves (:mod:`sim4endor.models.motion`); otherwise static geoms.
     """
 
     wire: GuidewireConfig = field(default_factory=GuidewireConfig)
     driver: DriverConfig = field(default_factory=DriverConfig)
     timestep: float | None = None
+    moving_walls: bool = False
 
 
 def config_for_vessel(
@@ -408,7 +414,10 @@ def insertion_frame(direction: np.ndarray) -> np.ndarray:
     return quat
 
 
-def _attach_vessel(spec: mujoco.MjSpec, vessel: Vessel) -> None:
+def _attach_vessel(spec: mujoco.MjSpec, vessel: Vessel,
+                   chunks: Mapping[str, int] | None = None) -> None:
+    """Attaches the vessel's MJCF; ``chunks`` (wall geom name to chunk index) moves each
+    named hull into its chunk's mocap body (the body at the origin, the hull where it was)."""
     child = mujoco.MjSpec.from_file(str(vessel.mjcf_path))
     # Mesh files are relative to the vessel folder; make them absolute so the parent spec,
     # which lives elsewhere, still finds them.
@@ -417,7 +426,28 @@ def _attach_vessel(spec: mujoco.MjSpec, vessel: Vessel) -> None:
         if mesh.file:
             mesh.file = str((mesh_root / mesh.file).resolve())
     child.meshdir = ""
+    if chunks:
+        wall = child.find_default(WALL_CLASS)
+        bodies = [child.worldbody.add_body(name=names.wall_chunk_body(k), mocap=True)
+                  for k in range(max(chunks.values()) + 1)]
+        for geom in [g for g in child.geoms if g.name in chunks]:
+            name, mesh = geom.name, geom.meshname
+            child.delete(geom)
+            bodies[chunks[name]].add_geom(default=wall, name=name, meshname=mesh)
     spec.attach(child, prefix=names.VESSEL_PREFIX, frame=spec.worldbody.add_frame())
+
+
+def wall_chunks(model: mujoco.MjModel, size: float = CHUNK_SIZE) -> dict[str, int]:
+    """Groups a compiled static scene's wall hulls into chunks of at most ``size`` (m) along
+    each axis, by their centres: wall geom name (inside the vessel's prefix) to chunk."""
+    prefix = names.VESSEL_PREFIX
+    walls = [g for g in range(model.ngeom)
+             if (model.geom_contype[g] & 2) and model.geom_bodyid[g] == 0
+             and mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g).startswith(prefix)]
+    cells = np.floor(model.geom_pos[walls] / size).astype(np.int64)
+    _, chunk = np.unique(cells, axis=0, return_inverse=True)
+    return {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)[len(prefix):]: int(k)
+            for g, k in zip(walls, chunk.ravel(), strict=True)}
 
 
 def _add_wall_contact_sensor(spec: mujoco.MjSpec, name: str, wire_body: str) -> None:
@@ -448,13 +478,15 @@ def starts_straight(wire: GuidewireConfig, bore_radius: float) -> bool:
     return wire.tip_lateral_offset >= bore_radius - wire.radius
 
 
-def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujoco.MjSpec:
+def build_spec(vessel: Vessel | None, config: SceneConfig | None = None,
+               chunks: Mapping[str, int] | None = None) -> mujoco.MjSpec:
     """Returns the uncompiled scene spec.
 
     Args:
         vessel: The anatomy; ``None`` gives the wire and driver alone with the inlet at the
             origin pointing along +x (used by the cantilever validation).
         config: Wire, driver and timestep; ``None`` uses the defaults.
+        chunks: For moving walls: each wall hull's chunk (:func:`wall_chunks`).
 
     A pre-bent tip wider than the inlet's lumen starts straightened
     (:data:`~sim4endor.models.constants.TIP_STRAIGHT_AT_START`).
@@ -470,7 +502,7 @@ def build_spec(vessel: Vessel | None, config: SceneConfig | None = None) -> mujo
     else:
         inlet, direction = vessel.inlet_position, vessel.inlet_direction
         straight = starts_straight(wire, vessel.manifest.inlet.radius)
-        _attach_vessel(spec, vessel)
+        _attach_vessel(spec, vessel, chunks)
     direction = direction / np.linalg.norm(direction)
     quat = insertion_frame(direction)
     back = driver.sheath_length(wire.length)
@@ -495,11 +527,15 @@ def _compiled(
     vessel_root: str | None, stamp: tuple[int, ...], config: SceneConfig
 ) -> mujoco.MjModel:
     # ``stamp`` (file modification times) makes a rebuilt folder at the same path a new entry.
-    del stamp
     from sim4endor import vessels  # the vessel folder is re-read once per cache entry
 
     vessel = None if vessel_root is None else vessels.load(Path(vessel_root))
-    spec = build_spec(vessel, config)
+    chunks = None
+    if config.moving_walls and vessel is not None:
+        # The hulls' centres come from the static scene (MuJoCo centres each mesh).
+        static = _compiled(vessel_root, stamp, dataclasses.replace(config, moving_walls=False))
+        chunks = wall_chunks(static)
+    spec = build_spec(vessel, config, chunks)
     try:
         return spec.compile()
     except ValueError as exc:

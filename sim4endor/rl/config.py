@@ -120,6 +120,8 @@ class EnvConfig:
         randomise: domain randomisation for sim-to-real, drawn per episode (the tracking,
             the action delay, the driver's backlash and slip; on coronary trees a wire unit
             per tree: :mod:`sim4endor.tasks.randomisation`; ``None``: off).
+        motion: coronary trees and vessel folders: a beating and breathing heart moves the
+            walls (:mod:`sim4endor.models.motion`; ``None``: a still heart).
         target_weights: domain ``coronary``, training only: relative weights of drawing each
             target label, e.g. ``{AM: 3, RV: 3}`` (others 1), a curriculum that trains more on
             the branches a policy misses; evaluations keep drawing targets uniformly, so
@@ -143,6 +145,7 @@ class EnvConfig:
     anatomy: str | None = None
     vary_wire: bool | None = None
     randomise: bool | None = None
+    motion: bool | None = None
     target_weights: dict[str, float] | None = None
 
     def __post_init__(self) -> None:
@@ -227,7 +230,7 @@ class EnvConfig:
         given = {"vessel": self.vessel, "target": self.target, "wire": self.wire_setting(),
                  "fidelity": self.fidelity, "pool_seed": pool_seed, "pool_size": self.pool_size,
                  "anatomy": self.anatomy, "vary_wire": self.vary_wire,
-                 "randomise": self.randomise,
+                 "randomise": self.randomise, "motion": self.motion,
                  "target_weights": None if evaluation else self.target_weights}
         kwargs.update({key: value for key, value in given.items() if value is not None})
         return kwargs

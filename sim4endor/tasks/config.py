@@ -10,6 +10,7 @@ import numpy as np
 
 from sim4endor._checks import is_number, require
 from sim4endor.errors import Sim4EndoRError
+from sim4endor.models.motion import MotionRanges
 from sim4endor.observations import (  # noqa: F401  (re-exported: the task's vocabulary)
     BIPLANE_OBSERVATIONS,
     DEFAULT_OBSERVATIONS,
@@ -362,6 +363,9 @@ class NavigationConfig:
         cathlab: The cath lab's sensors, used by the entries of ``CATHLAB_OBSERVATIONS``.
         randomisation: Ranges of the sensors and the driver drawn per episode
             (:mod:`sim4endor.tasks.randomisation`); ``None``: none drawn.
+        motion: Ranges of the heart's beat and breath drawn per episode
+            (:mod:`sim4endor.models.motion`; the scene needs ``moving_walls``); ``None``: a
+            still heart.
     """
 
     action: ActionConfig = field(default_factory=ActionConfig)
@@ -372,6 +376,7 @@ class NavigationConfig:
     pixels: PixelsConfig = field(default_factory=PixelsConfig)
     cathlab: CathLabConfig = field(default_factory=CathLabConfig)
     randomisation: Randomisation | None = None
+    motion: MotionRanges | None = None
 
     def __post_init__(self) -> None:
         valid = DEFAULT_OBSERVATIONS + OPTIONAL_OBSERVATIONS

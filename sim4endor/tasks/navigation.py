@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from sim4endor import rewards
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models import constants as names
+from sim4endor.models.motion import HeartMotion, WallMotion
 from sim4endor.observations import (
     BIPLANE_OBSERVATIONS,
     CATHLAB_OBSERVATIONS,
@@ -171,15 +172,19 @@ class NavigationTask(base.Task):
         self._max_rotation = math.inf
         self._evaluation: StepEvaluation | None = None
         self._fluoroscopes: dict[str, Fluoroscope] = {}
+        self._variation = _variation_stream(self.random)
         self._cathlab = (CathLab(self.config.cathlab, 2 if self.config.cathlab.biplane else 1)
                          if _CATHLAB_ENTRIES & set(self.config.observations) else None)
         # This episode's driver between the commands and the carriage; None: commands go
         # straight to the carriage (no randomisation).
         self._driver: DriverModel | None = None
+        # Per anatomy: its wall chunks' centres at rest.
+        self._chunks: dict[str, FloatArray] = {}
 
     def reseed(self, seed: int) -> None:
         """Replaces the task's random generator by one seeded with ``seed``."""
         self._random = np.random.RandomState(seed)
+        self._variation = _variation_stream(self._random)
 
     # ------------------------------------------------------------------------ anatomy
     @property
@@ -246,24 +251,51 @@ class NavigationTask(base.Task):
         self._insertion = float(self.random.uniform(0.0, start.insertion_range))
         self._rotation = float(self.random.uniform(-start.rotation_range, start.rotation_range))
         self._last_action = np.zeros(2)
+        physics.set_wall_motion(None if self.config.motion is None else
+                                self._wall_motion(physics,
+                                                  self.config.motion.draw(self._variation)))
         if start.off_path_depth is None:
             physics.place_driver(self._insertion, self._rotation)
         else:
+            driven = physics.time()
             self._start_off_path(physics, start.off_path_depth)
-        self._d_last = self._distance(self.config.reward.metric)(physics.tip_position())
-        self._closest = self.manifold_distance()(physics.tip_position())
+            motion = physics.wall_motion
+            if motion is not None:  # the clock restarts where the wall has moved to
+                physics.set_wall_motion(motion.later(driven))
+        tip = self._rest_tip(physics)
+        self._d_last = self._distance(self.config.reward.metric)(tip)
+        self._closest = self.manifold_distance()(tip)
         self._closest_time = physics.time()
         self._evaluation = None
         randomisation = self.config.randomisation
         if randomisation is not None:
-            self._driver = draw_driver(randomisation, self.random)
+            self._driver = draw_driver(randomisation, self._variation)
             self._driver.reset(self._insertion, self._rotation)
         if self._cathlab is not None:
             graph = self._anatomy.vessel.centerline
             route = self.path_to_target().route(graph.labels[INLET_LABEL])
             sensors = (None if randomisation is None
-                       else draw_sensors(randomisation, self.config.cathlab, self.random))
-            self._cathlab.reset(graph.nodes[route], self.random, sensors)
+                       else draw_sensors(randomisation, self.config.cathlab, self._variation))
+            self._cathlab.reset(graph.nodes[route], self._variation, sensors)
+
+    def _wall_motion(self, physics: control.Physics, motion: HeartMotion) -> WallMotion:
+        """This episode's motion of the anatomy's wall chunks."""
+        vessel = self._anatomy.vessel
+        if self._anatomy.key not in self._chunks:
+            centroids = physics.wall_chunk_centroids()
+            if not len(centroids):
+                raise TaskConfigError(f"The heart's motion needs the scene of {vessel.name!r} "
+                                      "built with moving walls (SceneConfig.moving_walls).")
+            self._chunks[self._anatomy.key] = centroids
+        return WallMotion(motion, self._chunks[self._anatomy.key], vessel.inlet_position,
+                          np.asarray(self.config.cathlab.patient_axes))
+
+    def _rest_tip(self, physics: control.Physics) -> FloatArray:
+        """The tip where it lies in the still tree: the geometry of reward, termination and
+        the privileged observation is the preoperative centerline's."""
+        motion = physics.wall_motion
+        tip = physics.tip_position()
+        return tip if motion is None else motion.to_rest(tip, physics.time())
 
     def _start_off_path(self, physics: control.Physics, depths: tuple[float, float]) -> None:
         """Drives the wire down the path to another target, then turns in the drawn roll (see
@@ -351,7 +383,7 @@ class NavigationTask(base.Task):
         term = self.config.termination
         # No NaN check needed here: MuJoCo resets a non-finite state inside mj_step and warns,
         # and dm_control turns the warning into the PhysicsError that calls mark_unstable.
-        tip = physics.tip_position()
+        tip = self._rest_tip(physics)
         if unstable:
             distance = manifold = self._d_last
             force, tip_force, excess, push = math.inf, math.inf, math.inf, math.inf
@@ -458,9 +490,15 @@ class NavigationTask(base.Task):
                                   "need the cath lab, which this task does not observe.")
         view = self._tip_view(physics) if _TIP_VIEW_ENTRIES & names else None
         # The cath lab's sensors see the imaged wire, the load cell and the clock, no more.
-        lab = None if self._cathlab is None or not names & _CATHLAB_ENTRIES else \
-            self._cathlab.observe(Measurement(physics.time(), physics.wire_points(),
-                                              physics.insertion_force()))
+        lab = None
+        if self._cathlab is not None and names & _CATHLAB_ENTRIES:
+            # The fluoroscope sees the catheter's frame moving with the breath.
+            motion = physics.wall_motion
+            wire = physics.wire_points()
+            if motion is not None:
+                wire = wire + motion.lab_offset(physics.time())
+            lab = self._cathlab.observe(Measurement(physics.time(), wire,
+                                                    physics.insertion_force()))
         for name in entries:
             if name in _CATHLAB_ENTRIES:
                 assert lab is not None  # built whenever a cath-lab entry is configured
@@ -471,8 +509,10 @@ class NavigationTask(base.Task):
 
     def _tip_view(self, physics: control.Physics) -> TipView:
         """The tip-frame entries of the current state, computed once per observation."""
-        return tip_view(self.path_to_target(), physics.tip_position(), physics.tip_frame(),
-                        physics.tip_velocity())
+        motion = physics.wall_motion
+        turn = np.eye(3) if motion is None else motion.rest_rotation(physics.time())
+        return tip_view(self.path_to_target(), self._rest_tip(physics),
+                        turn @ physics.tip_frame(), physics.tip_velocity() @ turn.T)
 
     def _observe(self, name: str, physics: control.Physics, view: TipView | None
                  ) -> np.ndarray:
@@ -492,7 +532,7 @@ class NavigationTask(base.Task):
         if name == "rotation":
             return np.array([physics.rotation_angle()], dtype=np.float64)
         if name == "manifold_distance":
-            distance = self.manifold_distance()(physics.tip_position())
+            distance = self.manifold_distance()(self._rest_tip(physics))
             return np.array([min(distance, DISTANCE_HORIZON)])
         if name == "pixels":
             return self._fluoroscopy(physics)
@@ -534,3 +574,13 @@ def _cathlab_entry(name: str, lab: CathLabView) -> np.ndarray:
         return np.array([lab.proximal_force])
     per_plane: FloatArray = getattr(lab, base)[plane]
     return np.array(per_plane, dtype=np.float64).reshape(-1)
+
+
+def _variation_stream(random: np.random.RandomState) -> np.random.RandomState:
+    """The generator of what varies besides the episode itself (the heart's motion, the cath
+    lab's views and noise, randomised sensors and driver): seeded from the task's generator
+    without drawing from it, so that the episodes (anatomy, target, start) are the same with
+    these on or off, and a policy can be compared with and without them episode by episode."""
+    state = random.get_state(legacy=True)
+    assert isinstance(state, tuple)  # legacy: ("MT19937", key, position, ...)
+    return np.random.RandomState(np.asarray(state[1], dtype=np.uint32)[:8])
