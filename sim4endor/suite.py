@@ -467,7 +467,12 @@ def load(
             (each tree its own unit of the wire: stiffness, friction and tip shape drawn
             within :class:`sim4endor.models.wires.WireVariation`'s ranges), ``target``,
             ``target_weights`` (relative weights of drawing each target label, e.g.
-            ``{"AM": 3}``; others 1).
+            ``{"AM": 3}``; others 1); the coronary domains and ``vessel``: ``motion``
+            (a beating and breathing heart moves the walls, :mod:`sim4endor.models.motion`:
+            true, or a mapping of :class:`~sim4endor.models.motion.MotionRanges`' ranges).
+            Every domain: ``cathlab`` (the sensors of the ``deployable`` observation set,
+            :class:`~sim4endor.tasks.CathLabConfig`) and ``randomise`` (domain randomisation
+            of the sensors and the driver, :mod:`sim4endor.tasks.randomisation`).
         environment_kwargs: Passed to ``control.Environment`` (e.g. ``time_limit``).
 
     Raises:
