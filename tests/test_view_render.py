@@ -136,3 +136,22 @@ def test_a_policy_drives_the_viewer_until_a_key_takes_over() -> None:
     assert env.task.step_info()["insertion_command"] < inserted  # the key pulled back
     session.on_key(view.KEY_S)  # hands back to the policy
     assert "policy driving" in session.status()
+
+
+@pytest.mark.render
+def test_render_with_motion_draws_the_moving_hulls(tmp_path: Path) -> None:
+    """With --motion the wall's hulls are drawn (the lumen's display mesh stands still)."""
+    from sim4endor.cli.render import wall_view
+
+    out = tmp_path / "beating.mp4"
+    args = ["render", "coronary", "navigate", "--motion", "--out", str(out), "--max-steps", "6",
+            "--width", "160", "--height", "128", "--no-progress", "--pool-size", "1"]
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY")}
+    result = subprocess.run([sys.executable, "-m", "sim4endor", *args], env=env,
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-2000:]
+    import imageio.v2 as imageio
+
+    assert len([frame for frame in imageio.get_reader(out)]) == 7
+    option = wall_view()
+    assert option.geomgroup[3] == 1 and option.geomgroup[1] == 0

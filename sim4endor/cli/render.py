@@ -245,7 +245,7 @@ def render_episode(args: argparse.Namespace) -> int:
     camera.set_pose(**top_down_pose(env.task.anatomy.vessel.centerline.nodes))
 
     # A moving wall is its hulls (group 3): the lumen's display mesh (group 1) stands still.
-    option = wall_view(env) if env.physics.wall_motion is not None else None
+    option = wall_view() if env.physics.wall_motion is not None else None
     frames: list[Any] = []
     total, step = 0.0, 0
     max_steps = step_budget(env, args.max_steps)
@@ -273,7 +273,7 @@ def render_episode(args: argparse.Namespace) -> int:
     return 0
 
 
-def wall_view(env: NavigationEnvironment) -> Any:
+def wall_view() -> Any:
     """Scene options that draw the wall's collision hulls instead of the lumen's mesh."""
     from dm_control.mujoco import wrapper
 
