@@ -43,6 +43,25 @@ TRACKING_HORIZON = 0.7
 
 #: Observation entries every task returns: the paper's state s_t = [p_t, v_t].
 DEFAULT_OBSERVATIONS: tuple[str, ...] = ("tip_position", "tip_velocity")
+#: Entries computed by the cath lab's sensor model (:mod:`sim4endor.tasks.cathlab`) from the
+#: fluoroscopic image, the preoperative roadmap and the driver's load cell.
+CATHLAB_OBSERVATIONS: tuple[str, ...] = (
+    "tracked_wire",
+    "roadmap_offset",
+    "roadmap_ahead",
+    "roadmap_remaining",
+    "roadmap_stall",
+    "tracking_age",
+    "proximal_force",
+)
+#: The cath lab's entries of one image plane, which a biplane lab's second plane repeats.
+PLANE_OBSERVATIONS: tuple[str, ...] = (
+    "tracked_wire", "roadmap_offset", "roadmap_ahead", "tracking_age")
+#: The second plane's entries, observed when the cath lab is biplane
+#: (:class:`~sim4endor.tasks.config.CathLabConfig`).
+BIPLANE_OBSERVATIONS: tuple[str, ...] = tuple(f"{name}_b" for name in PLANE_OBSERVATIONS)
+#: What the robot knows of its own driver: the encoders and its last command.
+_DRIVER: tuple[str, ...] = ("insertion", "rotation", "last_action")
 #: Entries that can be added through ``task_kwargs={"observations": (...)}``.
 OPTIONAL_OBSERVATIONS: tuple[str, ...] = (
     "target_position",
@@ -59,38 +78,14 @@ OPTIONAL_OBSERVATIONS: tuple[str, ...] = (
     "tip_force",
     "wall_force",
     "stall_time",
-    "tracked_wire",
-    "roadmap_offset",
-    "roadmap_ahead",
-    "roadmap_remaining",
-    "roadmap_stall",
-    "tracking_age",
-    "proximal_force",
-    "tracked_wire_b",
-    "roadmap_offset_b",
-    "roadmap_ahead_b",
-    "tracking_age_b",
+    *CATHLAB_OBSERVATIONS,
+    *BIPLANE_OBSERVATIONS,
 )
-#: Entries computed by the cath lab's sensor model (:mod:`sim4endor.tasks.cathlab`) from the
-#: fluoroscopic image, the preoperative roadmap and the driver's load cell.
-CATHLAB_OBSERVATIONS: tuple[str, ...] = (
-    "tracked_wire",
-    "roadmap_offset",
-    "roadmap_ahead",
-    "roadmap_remaining",
-    "roadmap_stall",
-    "tracking_age",
-    "proximal_force",
-)
-#: The second plane's entries, observed when the cath lab is biplane
-#: (:class:`~sim4endor.tasks.config.CathLabConfig`).
-BIPLANE_OBSERVATIONS: tuple[str, ...] = (
-    "tracked_wire_b", "roadmap_offset_b", "roadmap_ahead_b", "tracking_age_b")
 #: Every entry a robot in a cath lab can measure: the cath lab's sensors, the driver's
 #: encoders and its own last command. The others read simulation state no robot sees (the
 #: 3D tip registered to the CTA, the wall's forces, the lumen around the tip).
 MEASURABLE_OBSERVATIONS: frozenset[str] = frozenset(
-    (*CATHLAB_OBSERVATIONS, *BIPLANE_OBSERVATIONS, "insertion", "rotation", "last_action"))
+    (*CATHLAB_OBSERVATIONS, *BIPLANE_OBSERVATIONS, *_DRIVER))
 #: What the tip sees in its own frame (:mod:`sim4endor.tasks.tip_frame`) plus scalars: it does
 #: not change when the anatomy is rotated or translated with the wire, so nothing in it names
 #: one patient's coordinates.
@@ -121,13 +116,11 @@ OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     "generalist_stall": (*_NO_RADIUS, "stall_time"),
     # What a robot in a cath lab measures, for a student of the privileged generalist
     # (docs/tasks/cathlab.md); a test proves that it reads no other state.
-    "deployable": (*CATHLAB_OBSERVATIONS, "insertion", "rotation", "last_action"),
-    "deployable_biplane": (*CATHLAB_OBSERVATIONS, *BIPLANE_OBSERVATIONS, "insertion",
-                           "rotation", "last_action"),
+    "deployable": (*CATHLAB_OBSERVATIONS, *_DRIVER),
+    "deployable_biplane": (*CATHLAB_OBSERVATIONS, *BIPLANE_OBSERVATIONS, *_DRIVER),
 }
 
-#: Unit and size of each observation entry (``wire_shape`` is 3 per wire vertex).
-OBSERVATION_UNITS: dict[str, tuple[str, int | None]] = {
+_UNITS: dict[str, tuple[str, int | None]] = {
     "tip_position": ("m", 3),
     "tip_velocity": ("m/s", 3),
     "target_position": ("m", 3),
@@ -151,8 +144,8 @@ OBSERVATION_UNITS: dict[str, tuple[str, int | None]] = {
     "roadmap_stall": ("s", 1),
     "tracking_age": ("s", 1),
     "proximal_force": ("N", 1),
-    "tracked_wire_b": ("m at the isocentre, image axes", 2 * TRACKED_POINTS),
-    "roadmap_offset_b": ("m at the isocentre, image axes", 2),
-    "roadmap_ahead_b": ("m at the isocentre, image axes", 2 * PATH_POINTS),
-    "tracking_age_b": ("s", 1),
 }
+#: Unit and size of each observation entry (``wire_shape`` is 3 per wire vertex); the second
+#: plane's entries are the first's.
+OBSERVATION_UNITS: dict[str, tuple[str, int | None]] = {
+    **_UNITS, **{f"{name}_b": _UNITS[name] for name in PLANE_OBSERVATIONS}}

@@ -23,7 +23,7 @@ import yaml
 from sim4endor._argtypes import MAX_SEED
 from sim4endor._checks import require
 from sim4endor.errors import Sim4EndoRError
-from sim4endor.observations import OBSERVATION_SETS, OBSERVATION_UNITS
+from sim4endor.observations import OBSERVATION_SETS, OBSERVATION_UNITS, PLANE_OBSERVATIONS
 
 Algorithm = Literal["ddpg", "sac", "ppo"]
 ALGORITHMS: tuple[str, ...] = ("ddpg", "sac", "ppo")
@@ -46,16 +46,18 @@ def _check(config: object, section: str, **rules: tuple[str, ...]) -> None:
 #: within ±10 turns (×0.02); the tracked wire up to 10 mm behind the tip (×100), the roadmap's
 #: offset from it up to a few mm (×200), a track's age up to 0.7 s (×2), the load cell's
 #: reading up to the 1 N push limit (×2).
-OBSERVATION_SCALES: dict[str, float] = {
+_SCALES: dict[str, float] = {
     "tip_position": 20.0, "tip_velocity": 30.0, "target_position": 20.0, "wire_shape": 20.0,
     "last_action": 1.0, "insertion": 10.0, "rotation": 0.02, "manifold_distance": 10.0,
     "path_ahead": 50.0, "axis_offset": 1.0, "lumen_radius": 500.0,
     "tip_velocity_local": 30.0, "tip_force": 2.0, "wall_force": 0.5, "stall_time": 0.2,
     "tracked_wire": 100.0, "roadmap_offset": 200.0, "roadmap_ahead": 50.0,
     "roadmap_remaining": 10.0, "roadmap_stall": 0.2, "tracking_age": 2.0,
-    "proximal_force": 2.0, "tracked_wire_b": 100.0, "roadmap_offset_b": 200.0,
-    "roadmap_ahead_b": 50.0, "tracking_age_b": 2.0,
+    "proximal_force": 2.0,
 }
+#: The factors above, and the second image plane's entries scaled as the first's.
+OBSERVATION_SCALES: dict[str, float] = {
+    **_SCALES, **{f"{name}_b": _SCALES[name] for name in PLANE_OBSERVATIONS}}
 
 
 def default_observation_scale(env: EnvConfig) -> tuple[float, ...]:
