@@ -51,6 +51,22 @@ def require(config: object, prefix: str, error: type[Exception],
                 raise error(f"{where} must be {text}, got {value!r}.")
 
 
+def require_ranges(config: object, prefix: str, error: type[Exception],
+                   names: tuple[str, ...]) -> None:
+    """Raises ``error`` unless every named field is a ``(lowest, highest)`` pair of finite
+    numbers with ``0 <= lowest <= highest``; a list (as read from YAML or JSON) is stored as
+    a tuple first (on a frozen dataclass too)."""
+    for name in names:
+        value = getattr(config, name)
+        if isinstance(value, list):
+            value = tuple(value)
+            object.__setattr__(config, name, value)
+        if not (isinstance(value, tuple) and len(value) == 2 and all(map(is_number, value))
+                and 0 <= value[0] <= value[1]):
+            raise error(f"{prefix}.{name} must be (lowest, highest) with 0 <= lowest <= "
+                        f"highest, got {value!r}.")
+
+
 def check_schema_version(data: Mapping[str, Any], supported: int, source: str,
                          error: type[Exception]) -> None:
     """Raises ``error`` naming ``source`` and both versions if the file content ``data`` was

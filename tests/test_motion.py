@@ -14,6 +14,7 @@ from sim4endor.models.motion import (
     RAPID_FILLING,
     SYSTOLE,
     HeartMotion,
+    MotionError,
     MotionRanges,
     WallMotion,
 )
@@ -180,3 +181,15 @@ def test_a_phantom_has_no_heart() -> None:
 def test_motion_must_be_a_switch_or_ranges(value: Any) -> None:
     with pytest.raises(TaskConfigError, match="motion"):
         suite.load("coronary", "navigate", {"pool_size": 1, "motion": value})
+
+
+@pytest.mark.parametrize("ranges", [{"heart_rate": (100.0, 60.0)}, {"caudal": (-1e-3, 0.0)},
+                                    {"rotation": (0.1,)}])
+def test_bad_ranges_are_refused(ranges: dict[str, Any]) -> None:
+    with pytest.raises(MotionError, match=f"motion.{next(iter(ranges))}"):
+        MotionRanges(**ranges)
+
+
+def test_ranges_from_yaml_become_tuples() -> None:
+    from_yaml: Any = [60, 80]
+    assert MotionRanges(heart_rate=from_yaml).heart_rate == (60, 80)

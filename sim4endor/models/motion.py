@@ -33,6 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from sim4endor._checks import require_ranges
+from sim4endor.errors import Sim4EndoRError
+
 FloatArray = NDArray[np.float64]
 
 #: Largest extent (m) of a chunk of hulls that moves rigidly: neighbouring chunks then part
@@ -45,6 +48,10 @@ CHUNK_SIZE = 0.003
 #: beat: at 60 bpm 0.55 s of rest, at 100 bpm 0.15 s.
 SYSTOLE = 0.30
 RAPID_FILLING = 0.15
+
+
+class MotionError(Sim4EndoRError, ValueError):
+    """Raised for a range of the heart's motion that cannot be drawn from; names it."""
 
 
 @dataclass(frozen=True)
@@ -106,6 +113,10 @@ class MotionRanges:
     caudal: tuple[float, float] = (2.4e-3, 8.0e-3)
     anterior: tuple[float, float] = (0.0, 3.0e-3)
     rotation: tuple[float, float] = (math.radians(0.2), math.radians(3.5))
+
+    def __post_init__(self) -> None:
+        require_ranges(self, "motion", MotionError,
+                       tuple(field.name for field in dataclasses.fields(self)))
 
     def draw(self, random: np.random.RandomState) -> HeartMotion:
         """One episode's motion, its phases uniform over a beat and a breath."""

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from sim4endor._checks import is_number, require
+from sim4endor._checks import is_number, require, require_ranges
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.models.motion import MotionRanges
 from sim4endor.observations import (  # noqa: F401  (re-exported: the task's vocabulary)
@@ -326,18 +325,11 @@ class Randomisation:
     insertion_slip: tuple[float, float] = (0.0, 0.1)
 
     def __post_init__(self) -> None:
-        for field_ in dataclasses.fields(self):  # as read from YAML or JSON
-            if isinstance(getattr(self, field_.name), list):
-                object.__setattr__(self, field_.name, tuple(getattr(self, field_.name)))
-        for name in ("tracking_noise", "latency", "dropout", "roadmap_error", "action_delay",
-                     "roll_backlash", "insertion_slip"):
-            if len(getattr(self, name)) != 2:
-                raise TaskConfigError(f"Randomisation.{name} must be (lowest, highest), got "
-                                      f"{getattr(self, name)!r}.")
-            low, high = getattr(self, name)
-            if not 0 <= low <= high:
-                raise TaskConfigError(f"Randomisation.{name} must be (lowest, highest) with "
-                                      f"0 <= lowest <= highest, got {(low, high)!r}.")
+        require_ranges(self, "Randomisation", TaskConfigError,
+                       ("tracking_noise", "latency", "dropout", "roadmap_error", "action_delay",
+                        "roll_backlash", "insertion_slip"))
+        if isinstance(self.frame_rates, list):  # as read from YAML or JSON
+            object.__setattr__(self, "frame_rates", tuple(self.frame_rates))
         if self.dropout[1] >= 1.0 or self.insertion_slip[1] >= 1.0:
             raise TaskConfigError("Randomisation: dropout and insertion_slip must stay below 1.")
         if not self.frame_rates or min(self.frame_rates) <= 0:
