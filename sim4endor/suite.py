@@ -213,30 +213,28 @@ def _navigation_config(kwargs: Mapping[str, Any], termination: TerminationConfig
 
 
 def _motion(value: Any) -> MotionRanges | None:
-    """task_kwargs ``motion``: true for a beating and breathing heart with the literature's
-    ranges (:class:`~sim4endor.models.motion.MotionRanges`), a mapping of its fields for
-    others, false (the default) for a still one."""
-    if value is True:
-        return MotionRanges()
-    if value is False or value is None:
-        return None
-    if isinstance(value, Mapping):
-        return _config(value, MotionRanges, "motion")
-    raise TaskConfigError(f"task_kwargs motion must be true, false or a mapping of "
-                          f"MotionRanges' ranges, got {value!r}.")
+    """task_kwargs ``motion``: a beating and breathing heart with the literature's ranges
+    (:class:`~sim4endor.models.motion.MotionRanges`), or others; None: a still one."""
+    return _switch(value, MotionRanges, "motion", MotionRanges())
 
 
 def _randomisation(value: Any) -> Randomisation | None:
-    """task_kwargs ``randomise``: true for :data:`~sim4endor.tasks.config.RANDOMISATION`,
-    a mapping of its fields for other ranges, false (the default) for none."""
+    """task_kwargs ``randomise``: :data:`~sim4endor.tasks.config.RANDOMISATION` or other
+    ranges; None: no randomisation."""
+    return _switch(value, Randomisation, "randomise", RANDOMISATION)
+
+
+def _switch(value: Any, cls: type[_Config], name: str, default: _Config) -> _Config | None:
+    """A task_kwargs switch with settings: true for ``default``, a mapping of ``cls``'s fields
+    for ``default`` changed, false or None (not given) for off."""
     if value is True:
-        return RANDOMISATION
+        return default
     if value is False or value is None:
         return None
     if isinstance(value, Mapping):
-        return _config(value, Randomisation, "randomise", RANDOMISATION)
-    raise TaskConfigError(f"task_kwargs randomise must be true, false or a mapping of "
-                          f"Randomisation's ranges, got {value!r}.")
+        return _config(value, cls, name, default)
+    raise TaskConfigError(f"task_kwargs {name} must be true, false or a mapping of "
+                          f"{cls.__name__}'s fields, got {value!r}.")
 
 
 def _observations(value: Any) -> tuple[str, ...]:
