@@ -47,7 +47,7 @@ from sim4endor.observations import (
     TRACKING_HORIZON,
 )
 from sim4endor.tasks.config import CathLabConfig, TaskConfigError
-from sim4endor.vessels.centerline import arc_lengths
+from sim4endor.vessels.centerline import arc_lengths, points_along
 
 FloatArray = NDArray[np.float64]
 
@@ -117,14 +117,6 @@ def image_basis(beam: FloatArray) -> FloatArray:
     return np.stack([np.cross(up, beam), up])
 
 
-def _along(points: FloatArray, stations: NDArray[np.floating]) -> FloatArray:
-    """Points of a polyline at the given arc lengths from its first point (clipped)."""
-    arc = arc_lengths(points)
-    stations = np.clip(stations, 0.0, arc[-1])
-    return np.stack([np.interp(stations, arc, points[:, k]) for k in range(points.shape[1])],
-                    axis=1)
-
-
 class CathLab:
     """The sensor model of one task: draws its views per episode and observes each step."""
 
@@ -147,7 +139,6 @@ class CathLab:
         self._next_pulse = 0.0
         self._last_track = np.zeros((planes, TRACKED_POINTS + 1, 2))
         self._found_at = np.zeros(planes)
-        self._route = np.zeros((0, 3))
         self._route_arc = np.zeros(0)
         self._roadmap = np.zeros((planes, 0, 2))
         self._match = 0.0
@@ -184,8 +175,7 @@ class CathLab:
         self._bases = np.stack([image_basis(beam) @ axes.T for beam in beams])
         arc = arc_lengths(route)
         self._route_arc = np.linspace(0.0, arc[-1], math.ceil(arc[-1] / _ROADMAP_STEP) + 1)
-        self._route = _along(route, self._route_arc)
-        self._roadmap = self.image(self._route) + \
+        self._roadmap = self.image(points_along(route, self._route_arc)) + \
             self._random.normal(0.0, self.sensors.roadmap_error, (self.planes, 1, 2))
         self._frames.clear()
         self._next_pulse = -math.inf
@@ -258,7 +248,7 @@ class CathLab:
     def _track(self, image: FloatArray) -> FloatArray:
         """(TRACKED_POINTS + 1, 2): the tracked wire, proximal first and the tip last."""
         backwards = image[::-1]
-        points = _along(backwards, TRACKED_SPACING * np.arange(TRACKED_POINTS + 1))[::-1]
+        points = points_along(backwards, TRACKED_SPACING * np.arange(TRACKED_POINTS + 1))[::-1]
         return points + self._random.normal(0.0, self.sensors.tracking_noise, points.shape)
 
     def _shown(self, time: float) -> tuple[FloatArray, FloatArray]:

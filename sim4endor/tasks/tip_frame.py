@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim4endor.observations import PATH_POINTS, PATH_SPACING
-from sim4endor.vessels.centerline import CenterlineGraph, Projection, arc_lengths
+from sim4endor.vessels.centerline import CenterlineGraph, Projection, points_along
 
 FloatArray = NDArray[np.float64]
 
@@ -84,9 +84,7 @@ class PathToTarget:
             node = int(next_node[node])
             route.append(node)
         vertices = np.vstack([proj.point, graph.nodes[route]])
-        arc = arc_lengths(vertices)
-        stations = np.minimum(spacing * np.arange(1, count + 1), arc[-1])
-        return np.stack([np.interp(stations, arc, vertices[:, k]) for k in range(3)], axis=1)
+        return points_along(vertices, spacing * np.arange(1, count + 1))
 
 
 @dataclass(frozen=True)

@@ -38,6 +38,14 @@ def arc_lengths(points: FloatArray) -> FloatArray:
     return np.concatenate([[0.0], np.cumsum(steps)])
 
 
+def points_along(points: FloatArray, stations: NDArray[np.floating]) -> FloatArray:
+    """The polyline through ``points`` (N, D) at arc lengths ``stations`` from its first point
+    (m), shape (len(stations), D); stations beyond either end give that end."""
+    arc = arc_lengths(points)
+    return np.stack([np.interp(stations, arc, points[:, k]) for k in range(points.shape[1])],
+                    axis=1)
+
+
 class CenterlineError(Sim4EndoRError, ValueError):
     """Raised for a malformed centerline graph; the message names the problem."""
 
