@@ -30,6 +30,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
@@ -134,11 +135,10 @@ class MotionRanges:
 
 def _rotation(axis: FloatArray, angle: float) -> FloatArray:
     """The rotation matrix of ``angle`` (rad) about the unit ``axis``."""
-    x, y, z = axis
-    c, s, t = math.cos(angle), math.sin(angle), 1.0 - math.cos(angle)
-    return np.array([[t * x * x + c, t * x * y - s * z, t * x * z + s * y],
-                     [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
-                     [t * x * z - s * y, t * y * z + s * x, t * z * z + c]])
+    quat, matrix = np.zeros(4), np.zeros(9)
+    mujoco.mju_axisAngle2Quat(quat, axis, angle)
+    mujoco.mju_quat2Mat(matrix, quat)
+    return matrix.reshape(3, 3)
 
 
 class WallMotion:
@@ -166,10 +166,14 @@ class WallMotion:
         a chunk's geoms, placed at rest with its body at the origin, move to
         ``position + rotation @ rest``."""
         motion = self.motion
-        rotation = _rotation(self._left, -motion.rotation * motion.respiratory(time))
+        rotation = self._turn(time)
         scale = 1.0 - motion.cardiac_strain * motion.cardiac(time)
         moved = self.ostium + scale * (self.centroids - self.ostium) @ rotation.T
         return moved - self.centroids @ rotation.T, rotation
+
+    def _turn(self, time: float) -> FloatArray:
+        """The breath's turn (3, 3) about the left-right axis through the ostium."""
+        return _rotation(self._left, -self.motion.rotation * self.motion.respiratory(time))
 
     def lab_offset(self, time: float) -> FloatArray:
         """How far the catheter's frame (ostium, wire, tree) has moved in the lab at
@@ -202,4 +206,4 @@ class WallMotion:
 
     def rest_rotation(self, time: float) -> FloatArray:
         """The rotation (3, 3) that carries directions back to the still tree."""
-        return self.pose(time)[1].T
+        return self._turn(time).T

@@ -485,14 +485,14 @@ class NavigationTask(base.Task):
         (:mod:`sim4endor.rl.imitation`). The cath lab's entries need the lab configured."""
         obs: collections.OrderedDict[str, np.ndarray] = collections.OrderedDict()
         names = set(entries)
-        if names & _CATHLAB_ENTRIES and self._cathlab is None:
-            raise TaskConfigError(f"Observation entries {sorted(names & _CATHLAB_ENTRIES)} "
-                                  "need the cath lab, which this task does not observe.")
         view = self._tip_view(physics) if _TIP_VIEW_ENTRIES & names else None
-        # The cath lab's sensors see the imaged wire, the load cell and the clock, no more.
         lab = None
-        if self._cathlab is not None and names & _CATHLAB_ENTRIES:
-            # The fluoroscope sees the catheter's frame moving with the breath.
+        if names & _CATHLAB_ENTRIES:
+            if self._cathlab is None:
+                raise TaskConfigError(f"Observation entries {sorted(names & _CATHLAB_ENTRIES)} "
+                                      "need the cath lab, which this task does not observe.")
+            # The cath lab's sensors see the imaged wire (carried in the lab by the breath),
+            # the load cell and the clock, no more.
             motion = physics.wall_motion
             wire = physics.wire_points()
             if motion is not None:
