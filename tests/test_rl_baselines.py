@@ -106,6 +106,25 @@ def test_the_suite_reports_wide_implicit_and_real_anatomy_as_their_own_groups() 
     assert {case.env.vessel for case in real} == {str(folder)}
 
 
+def test_the_moving_heart_runs_every_group_but_the_phantoms_again_as_its_own_group() -> None:
+    from sim4endor.rl.generalisation import MOVING, SuiteConfig, ordered_groups, suite_cases
+
+    folder = vessels.load("vascular_phantom").root
+    still = suite_cases(SuiteConfig(trees=1, wide_trees=0, implicit_trees=0, real=(folder,),
+                                    steve_dir=None), "generalist")
+    cases = suite_cases(SuiteConfig(trees=1, wide_trees=0, implicit_trees=0, real=(folder,),
+                                    steve_dir=None, motion=True, randomise=True), "generalist")
+    assert ordered_groups(case.group for case in cases) == [
+        "held_out_trees", "held_out_trees moving", "real", "real moving", "phantoms"]
+    moving = [case for case in cases if case.group.endswith(MOVING)]
+    assert [case.label for case in moving] == [case.label + MOVING for case in still
+                                               if case.group != "phantoms"]
+    assert {case.env.motion for case in moving} == {True}
+    assert {case.env.motion for case in cases if case not in moving} == {None}
+    assert {case.env.randomise for case in cases} == {True}
+    assert {case.env.randomise for case in still} == {None}
+
+
 @pytest.mark.slow
 def test_the_implicit_family_is_built_once_into_the_cache() -> None:
     from sim4endor.rl.generalisation import implicit_vessels

@@ -104,6 +104,19 @@ def test_the_shipped_policy_against_a_copy_of_itself_differs_nowhere(
         regression.regression([shipped], shipped, config)
 
 
+def test_a_policy_beside_the_evaluated_one_meets_the_same_cases(
+    shipped_and_copy: tuple[Path, Path, SuiteConfig]
+) -> None:
+    """``--beside``: a row of its own after the evaluated policy's, on the same cases."""
+    from sim4endor.rl.generalisation import evaluate_suite, markdown
+
+    shipped, copy, config = shipped_and_copy
+    result = evaluate_suite(copy, config, with_baselines=False, beside=(shipped,))
+    assert list(result["rows"]) == ["policy (copy)", "policy (generalist)"]
+    assert result["rows"]["policy (copy)"] == result["rows"]["policy (generalist)"]
+    assert "| policy (generalist) | phantoms | " in markdown(result)
+
+
 def test_a_real_target_out_of_reach_says_how_narrow_the_way_is() -> None:
     require_vessel("vascular_phantom")
     vessel = vessels.load("vascular_phantom")

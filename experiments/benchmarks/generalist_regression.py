@@ -10,7 +10,10 @@ on no group.
 Usage:
     python experiments/benchmarks/generalist_regression.py RUN [RUN ...] [--reference POLICY]
         [--trees 20] [--wide-trees 10] [--implicit-trees 6] [--real DIR ...] [--jobs 2]
-        [--json PATH]
+        [--motion] [--randomise] [--json PATH]
+
+``--motion`` also runs every group but the phantoms on a beating and breathing heart (each a
+group ``GROUP moving``); ``--randomise`` draws the domain randomisation in every case.
 """
 
 from __future__ import annotations
@@ -40,12 +43,16 @@ def main() -> None:
                         help="a real patient's vessel folder (repeatable)")
     parser.add_argument("--steve", type=Path, help="the stEVE anatomy's folder")
     parser.add_argument("--trials", type=int, default=1, help="episodes per case")
+    parser.add_argument("--motion", action="store_true",
+                        help="also every case but the phantoms' on a moving heart")
+    parser.add_argument("--randomise", action="store_true",
+                        help="domain randomisation in every case")
     parser.add_argument("--jobs", type=int, default=2, help="processes")
     parser.add_argument("--json", type=Path, help="also write the verdicts and rows here")
     args = parser.parse_args()
     config = SuiteConfig(trees=args.trees, wide_trees=args.wide_trees,
                          implicit_trees=args.implicit_trees, real=tuple(args.real),
-                         trials=args.trials)
+                         trials=args.trials, motion=args.motion, randomise=args.randomise)
     if args.steve is not None:
         config = dataclasses.replace(config, steve_dir=args.steve)
     start = time.monotonic()

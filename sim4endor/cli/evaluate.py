@@ -56,7 +56,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(every distal target), as many wide ones (tortuous, stenosed, narrower), the "
         "evaluation-only implicit family, the --real vessel folders, both phantoms' targets "
         "and the stEVE anatomy, each a group of its own, beside the scripted expert and "
-        "open-loop baselines (docs/training.md)")
+        "open-loop baselines (docs/training.md); with --motion each group but the phantoms "
+        "runs again on a beating and breathing heart (GROUP moving), with --randomise every "
+        "case draws the domain randomisation")
     suite.add_argument("--suite", choices=("generalisation",),
                        help="run the named evaluation suite instead of the run's task")
     suite.add_argument("--trees", type=arg_types.positive_int, default=20,
@@ -78,6 +80,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        help="step cap per episode (default: 800, the coronary domain's 40 s)")
     suite.add_argument("--no-baselines", action="store_true",
                        help="only the policy, no reference rows")
+    suite.add_argument("--beside", type=assets.run_or_policy, action="append", default=[],
+                       metavar="RUN_OR_POLICY",
+                       help="also run this policy on the same cases, a row after the "
+                            "evaluated one's (e.g. a student's teacher: --beside generalist); "
+                            "repeat for more")
     parser.add_argument("--json", action="store_true", help="print one JSON line")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.set_defaults(func=run)
@@ -139,7 +146,7 @@ def _run_suite(args: argparse.Namespace) -> int:
     if args.steve is not None:
         config = dataclasses.replace(config, steve_dir=args.steve)
     result = generalisation.evaluate_suite(
-        args.run_dir, config, with_baselines=not args.no_baselines,
+        args.run_dir, config, with_baselines=not args.no_baselines, beside=args.beside,
         progress=not args.no_progress)
     if args.json:
         print(strict_json.dumps(result))  # noqa: T201
@@ -172,9 +179,10 @@ def _run_vessel(args: argparse.Namespace) -> int:
 
 
 def _with_flags(config: SuiteConfig, args: argparse.Namespace) -> SuiteConfig:
-    """``config`` with the ``--wire``, ``--tip``, ``--fidelity`` and ``--seed`` given on the
-    command line."""
-    given = {name: getattr(args, name) for name in ("wire", "tip", "fidelity")
+    """``config`` with the ``--wire``, ``--tip``, ``--fidelity``, ``--motion``,
+    ``--randomise`` and ``--seed`` given on the command line."""
+    given = {name: getattr(args, name)
+             for name in ("wire", "tip", "fidelity", "motion", "randomise")
              if getattr(args, name)}
     if args.seed is not None:
         given["seed"] = args.seed

@@ -14,6 +14,12 @@ Groups of (anatomy, target) cases, all with one wire preset (default ``workhorse
 * ``steve``: every target of the real stEVE anatomy (``steve_dir``), built once into the
   cache; skipped with a message when its folder is absent.
 
+With ``motion`` every case whose anatomy can move (all but the phantoms) runs a second time on
+a beating and breathing heart (:mod:`sim4endor.models.motion`), reported as the group
+``GROUP moving``; with ``randomise`` every case draws the domain randomisation
+(:mod:`sim4endor.tasks.randomisation`). Other policies may run ``beside`` the evaluated one,
+each on the same cases with its own observation set (a student beside its teacher).
+
 Each case runs ``trials`` deterministic episodes. Besides the policy, reference rows run the
 same cases (:mod:`sim4endor.rl.baselines`): the scripted expert, the constant push ``[1, 0]``,
 the best constant action of the baselines' grid (chosen on other trees and start seeds than the
@@ -27,7 +33,7 @@ import dataclasses
 import functools
 import logging
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -52,6 +58,8 @@ _LOG = logging.getLogger(__name__)
 #: The groups, in the order they are reported.
 GROUPS: tuple[str, ...] = ("held_out_trees", "wide_trees", "implicit", "real", "phantoms",
                            "steve")
+#: Appended to a group's name and its cases' labels when they run on a moving heart.
+MOVING = " moving"
 #: The folder of the stEVE anatomy when ``--steve`` is not given.
 DEFAULT_STEVE_DIR = Path(os.environ.get("SIM4ENDOR_SHARED", "../shared")) / "data" / \
     "steve_bench_dualdevicenav"
@@ -88,6 +96,8 @@ class SuiteConfig:
         wide_trees: Trees of the ``wide_trees`` group (seeds from ``first_seed``).
         implicit_trees: Trees of the ``implicit`` group (seeds 0 on).
         real: Vessel folders of the ``real`` group (``sim4endor vessel build`` output).
+        motion: Also run every case but the phantoms' on a beating and breathing heart.
+        randomise: Every case with domain randomisation (``EnvConfig.randomise``).
     """
 
     trees: int = 20
@@ -102,15 +112,18 @@ class SuiteConfig:
     wide_trees: int = 10
     implicit_trees: int = 6
     real: tuple[Path, ...] = ()
+    motion: bool = False
+    randomise: bool = False
 
     def for_run(self, run_env: EnvConfig) -> SuiteConfig:
         """This config with the run's tip shape where it names none."""
         return self if self.tip is not None else dataclasses.replace(self, tip=run_env.tip)
 
     def base_env(self, observations: str) -> EnvConfig:
-        """The environment every case derives from: ``observations`` and the suite's wire."""
+        """The environment every case derives from: ``observations``, the suite's wire and
+        its randomisation (a policy trained with randomisation meets it only when asked)."""
         return EnvConfig(observations=observations, wire=self.wire, tip=self.tip,
-                         fidelity=self.fidelity)
+                         fidelity=self.fidelity, randomise=self.randomise or None)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -166,12 +179,23 @@ def suite_cases(config: SuiteConfig, observations: str) -> list[Case]:
                      "shared/ folder or pass --steve DIR)", config.steve_dir)
     else:
         cases += vessel_cases("steve", steve, base)
+    if config.motion:  # the phantoms' walls are fixed in their box
+        cases += [Case(case.group + MOVING, case.label + MOVING,
+                       dataclasses.replace(case.env, motion=True))
+                  for case in cases if case.group != "phantoms"]
     labels = [case.label for case in cases]
     if len(set(labels)) != len(labels):  # each case's episodes and environment go by label
         twice = sorted({label for label in labels if labels.count(label) > 1})
         raise Sim4EndoRError(f"Two suite cases are labelled {twice[0]!r}: two --real folders "
                              "hold vessels of one name; give one of them.")
     return cases
+
+
+def ordered_groups(groups: Iterable[str]) -> list[str]:
+    """The groups named in ``groups``, in the reported order: each of :data:`GROUPS`
+    followed by its moving twin."""
+    present = set(groups)
+    return [name for group in GROUPS for name in (group, group + MOVING) if name in present]
 
 
 def policy_cases(run_env: EnvConfig, config: SuiteConfig) -> list[Case]:
@@ -268,7 +292,7 @@ def group_metrics(cases: Sequence[Case], episodes: dict[str, list[Episode]]
                   ) -> dict[str, dict[str, Any]]:
     """The :func:`~sim4endor.rl.metrics.summarize` metrics of each group that has episodes."""
     out = {}
-    for group in GROUPS:
+    for group in ordered_groups(case.group for case in cases):
         runs = [e for case in cases if case.group == group for e in episodes[case.label]]
         if runs:
             out[group] = summarize(runs)
@@ -317,8 +341,11 @@ def reference_rows(config: SuiteConfig, observations: str, cases: Sequence[Case]
 
 
 def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool = True,
-                   progress: bool = False) -> dict[str, Any]:
+                   beside: Sequence[Path] = (), progress: bool = False) -> dict[str, Any]:
     """Runs a training run's deterministic policy (and the reference rows) on the suite.
+
+    ``beside``: other runs or policies (e.g. a student's teacher), each run on the same cases
+    with its own observation set and trained tip, a row after the run's.
 
     Returns:
         ``rows``: policy label → group → metrics (:func:`group_metrics`), the run first;
@@ -330,17 +357,19 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
     from sim4endor.rl.runs import run_config
 
     train_config = run_config(run_dir)
-    config = config.for_run(train_config.env)
     cases = policy_cases(train_config.env, config)
+    run_suite = config.for_run(train_config.env)
     envs = CaseEnvironments()
     try:
-        episodes = run_cases(cases, run_actor(run_dir), config, envs,
-                             label=Path(run_dir).name, progress=progress)
-        rows = {f"policy ({Path(run_dir).name})": group_metrics(cases, episodes)}
+        episodes = run_cases(cases, run_actor(run_dir), run_suite, envs,
+                             label=policy_name(run_dir), progress=progress)
+        rows = {f"policy ({policy_name(run_dir)})": group_metrics(cases, episodes)}
+        for other in beside:
+            rows[f"policy ({policy_name(other)})"] = _beside_row(other, config, progress)
         if with_baselines:
-            rows.update(reference_rows(config, train_config.env.observations, cases, envs,
+            rows.update(reference_rows(run_suite, train_config.env.observations, cases, envs,
                                        progress))
-        reach = probe_real(cases, config, envs, progress)
+        reach = probe_real(cases, run_suite, envs, progress)
     finally:
         envs.close()
     targets = {label: summarize(runs)["success_rate"] for label, runs in episodes.items()}
@@ -351,6 +380,29 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
                       real_reachable={"successes": reached, "reachable": reachable,
                                       "targets": len(reach)})
     return result
+
+
+def _beside_row(run_dir: Path, config: SuiteConfig, progress: bool
+                ) -> dict[str, dict[str, Any]]:
+    """Another run's metrics per group on the suite's cases, in environments of its own
+    (its observation set may differ from the evaluated run's)."""
+    from sim4endor.rl.runs import run_config
+
+    run_env = run_config(run_dir).env
+    cases = policy_cases(run_env, config)
+    envs = CaseEnvironments()
+    try:
+        return group_metrics(cases, run_cases(cases, run_actor(run_dir), config.for_run(run_env),
+                                              envs, label=policy_name(run_dir),
+                                              progress=progress))
+    finally:
+        envs.close()
+
+
+def policy_name(path: Path) -> str:
+    """A run's name in the tables: its folder, or the folder above a recipe's ``policy``."""
+    path = Path(path)
+    return path.parent.name if path.name == "policy" else path.name
 
 
 def probe_real(cases: Sequence[Case], config: SuiteConfig, envs: CaseEnvironments,
@@ -392,7 +444,9 @@ def evaluate_vessel(policy: Path | baselines.Baseline, vessel: str | Path, confi
     config = config.for_run(run_env)
     base = evaluation_env(run_env, {"domain": "vessel", "task": "navigate",
                                     "vessel": str(loaded.root), "wire": config.wire,
-                                    "tip": config.tip, "fidelity": config.fidelity})
+                                    "tip": config.tip, "fidelity": config.fidelity,
+                                    "motion": config.motion or None,
+                                    "randomise": config.randomise or None})
     cases = [Case("vessel", target, dataclasses.replace(base, target=target))
              for target in sorted(loaded.targets)]
     envs = CaseEnvironments()

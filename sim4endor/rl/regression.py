@@ -2,7 +2,8 @@
 
 A candidate and a reference policy run the same cases of :mod:`sim4endor.rl.generalisation`
 (the same anatomies, targets and start seeds), so each of the candidate's episodes has a twin
-of the reference's. Per group (``GROUPS``) the verdict compares:
+of the reference's. Per group (each of ``GROUPS``, and with ``motion`` its moving twin) the
+verdict compares:
 
 * **successes**: the candidate is worse when it reaches fewer targets than the reference;
 * **SPL** (success weighted by path length, per episode): worse when the mean of the paired
@@ -83,15 +84,15 @@ class GroupVerdict:
 
 def compare(groups: Mapping[str, str], candidate: Mapping[str, Sequence[Episode]],
             reference: Mapping[str, Sequence[Episode]]) -> list[GroupVerdict]:
-    """The verdict per group (in :data:`generalisation.GROUPS` order) of two policies' episodes
-    on the same cases.
+    """The verdict per group (in :func:`generalisation.ordered_groups` order) of two
+    policies' episodes on the same cases.
 
     Args:
         groups: each case label's group.
         candidate, reference: each case label's episodes, in the same start-seed order.
     """
     verdicts = []
-    for group in generalisation.GROUPS:
+    for group in generalisation.ordered_groups(groups.values()):
         labels = [label for label, of in groups.items() if of == group]
         if not labels:
             continue
@@ -124,7 +125,7 @@ def regression(candidates: Sequence[Path], reference: Path,
         ``outcomes``: policy name → case label → each episode's outcome.
     """
     policies = [Path(reference), *map(Path, candidates)]
-    names = [policy_name(p) for p in policies]
+    names = [generalisation.policy_name(p) for p in policies]
     if len(set(names)) != len(names):
         raise Sim4EndoRError(f"The policies compared need distinct names, got {names}; give "
                              "each run folder (or the folder above policy/) its own name.")
@@ -140,12 +141,6 @@ def regression(candidates: Sequence[Path], reference: Path,
             "ships": {name: ships(v) for name, v in verdicts.items()}, "rows": rows,
             "outcomes": {name: {label: [e.outcome for e in runs] for label, runs in of.items()}
                          for name, of in episodes.items()}}
-
-
-def policy_name(path: Path) -> str:
-    """A run's name in the tables: its folder, or the folder above a recipe's ``policy``."""
-    path = Path(path)
-    return path.parent.name if path.name == "policy" else path.name
 
 
 def markdown(result: Mapping[str, Any]) -> str:
