@@ -35,7 +35,7 @@ from sim4endor.models.guidewire import GuidewireConfig, segment_lengths
 from sim4endor.models.scene import SceneConfig
 from sim4endor.physics import GuidewirePhysics
 from sim4endor.vessels import Vessel
-from sim4endor.vessels.centerline import arc_lengths
+from sim4endor.vessels.centerline import arc_lengths, points_along
 
 FloatArray = NDArray[np.float64]
 
@@ -236,13 +236,8 @@ def tip_bend_direction(physics: GuidewirePhysics, back: float = 0.008) -> float:
     from world +z projected orthogonal to the axis (any fixed rule works for differences).
     """
     points = physics.wire_points()
-    arc = arc_lengths(points)
-    s_tip = arc[-1]
-
-    def at(s: float) -> FloatArray:
-        return np.array([np.interp(s, arc, points[:, k]) for k in range(3)])
-
-    base, mid = at(s_tip - 2 * back), at(s_tip - back)
+    s_tip = arc_lengths(points)[-1]
+    base, mid = points_along(points, np.array([s_tip - 2 * back, s_tip - back]))
     axis = (mid - base) / np.linalg.norm(mid - base)
     offset = points[-1] - mid
     offset -= axis * np.dot(offset, axis)

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from sim4endor.vessels.centerline import CenterlineGraph
+from sim4endor.vessels.centerline import CenterlineGraph, points_along
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -128,8 +128,7 @@ def sample_axis(graph: CenterlineGraph, spacing: float = 0.2) -> AxisSamples:
         step = spacing * float(radii.min())
         count = max(2, int(np.ceil(arc[-1] / step)) + 1)
         s = np.linspace(0.0, arc[-1], count)
-        p = np.column_stack([np.interp(s, arc, nodes[:, k]) for k in range(3)])
-        r = np.interp(s, arc, radii)
+        p, r = points_along(nodes, s), np.interp(s, arc, radii)
         t = np.gradient(p, axis=0)
         t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-30)
         n = np.empty_like(t)

@@ -36,7 +36,12 @@ from sim4endor._atomic import atomic_directory, holds_output
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels import CENTERLINE_FILE, LUMEN_FILE, SCENE_FILE, Vessel, load
 from sim4endor.vessels.axis import AxisSamples, branch_chains, sample_axis
-from sim4endor.vessels.centerline import INLET_LABEL, CenterlineGraph, arc_lengths
+from sim4endor.vessels.centerline import (
+    INLET_LABEL,
+    CenterlineGraph,
+    arc_lengths,
+    points_along,
+)
 from sim4endor.vessels.checks import (
     CheckParams,
     LumenProbes,
@@ -179,7 +184,7 @@ def _terminal_direction(graph: CenterlineGraph, node: int) -> np.ndarray:
     points = graph.nodes[chain]
     arc = arc_lengths(points)
     reach = min(float(arc[-1]), max(2.0 * float(graph.radii[node]), 1e-9))
-    ahead = np.array([np.interp(reach, arc, points[:, k]) for k in range(3)])
+    ahead = points_along(points, np.array([reach]))[0]
     direction = ahead - graph.nodes[node]
     return direction / np.linalg.norm(direction)
 

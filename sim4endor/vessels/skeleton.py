@@ -30,7 +30,7 @@ from scipy.spatial import cKDTree
 
 from sim4endor.errors import Sim4EndoRError
 from sim4endor.vessels.axis import branch_chains
-from sim4endor.vessels.centerline import CenterlineGraph, arc_lengths
+from sim4endor.vessels.centerline import CenterlineGraph, arc_lengths, points_along
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -189,8 +189,7 @@ def _assemble(
         arc = arc_lengths(p)
         count = max(1, round(arc[-1] / (params.node_spacing * float(r.mean()))))
         s = np.linspace(0.0, arc[-1], count + 1)
-        sp = np.column_stack([np.interp(s, arc, p[:, k]) for k in range(3)])
-        sr = np.interp(s, arc, r)
+        sp, sr = points_along(p, s), np.interp(s, arc, r)
         ids = [key(chain[0], sp[0], sr[0])]
         for k in range(1, count):
             nodes.append(sp[k])
