@@ -186,6 +186,27 @@ def test_shipped_recipe_reads_and_names_bad_fields() -> None:
         recipe.load_recipe("nope")
 
 
+def test_the_students_recipe_is_the_generalists_distilled_onto_the_cath_lab() -> None:
+    """``base: generalist``: every field the student's recipe file does not name is the
+    generalist's; a recipe that leads back to itself is refused by name."""
+    student = recipe.load_recipe("student")
+    assert student == recipe.load_recipe("generalist", [
+        "teacher=generalist", "policy.env.observations=deployable",
+        "policy.env.randomise=true"])
+    assert recipe.load_recipe("student", ["seed=3"]).seed == 3
+
+
+def test_a_recipe_based_on_itself_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                             ) -> None:
+    for name, base in (("a", "b"), ("b", "a")):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / assets.RECIPE_FILE).write_text(f"base: {base}\n")
+    monkeypatch.setattr(recipe, "policies_dir", lambda: tmp_path)
+    monkeypatch.setattr(recipe, "recipe_names", lambda: ("a", "b"))
+    with pytest.raises(recipe.RecipeError, match="'a' is based on itself: a -> b -> a"):
+        recipe.load_recipe("a")
+
+
 def test_successful_keeps_the_episodes_that_reached_their_target() -> None:
     episodes = imitation.Episodes(
         observation=np.arange(7.0)[:, None], action=np.arange(14.0).reshape(7, 2),

@@ -184,16 +184,31 @@ class RecipeConfig:
             raise ConfigError(f"rounds={self.rounds} needs at least one takeovers source.")
 
 
+#: A recipe file's key naming the shipped recipe it starts from (its other fields override).
+BASE_KEY = "base"
+
+
 def load_recipe(name: str, overrides: Iterable[str] = ()) -> RecipeConfig:
     """The recipe of the shipped policy ``name``, with ``field=value`` overrides applied
-    (e.g. ``seed=2``, ``clone.steps=100``, ``policy.env.tip='3,75'``)."""
+    (e.g. ``seed=2``, ``clone.steps=100``, ``policy.env.tip='3,75'``). A recipe file that
+    names a ``base`` recipe is that recipe with the file's fields replaced (the student's is
+    the generalist's, distilled onto what a cath lab measures)."""
+    return override_fields(_read_recipe(name, ()), overrides)
+
+
+def _read_recipe(name: str, within: tuple[str, ...]) -> RecipeConfig:
+    """The shipped recipe ``name``; ``within``, the recipes whose ``base`` led here."""
     if name not in recipe_names():
         raise RecipeError(f"No recipe named {name!r}; the shipped recipes are "
                           f"{list(recipe_names())}.")
+    if name in within:
+        raise RecipeError(f"Recipe {within[0]!r} is based on itself: "
+                          f"{' -> '.join((*within, name))}.")
     path = policies_dir() / name / RECIPE_FILE
-    data = yaml.safe_load(path.read_text())
-    recipe = merge_fields(RecipeConfig(), data, str(path))
-    return override_fields(recipe, overrides)
+    data = yaml.safe_load(path.read_text()) or {}
+    base = data.pop(BASE_KEY, None)
+    start = RecipeConfig() if base is None else _read_recipe(str(base), (*within, name))
+    return merge_fields(start, data, str(path))
 
 
 def recipe_dict(recipe: RecipeConfig) -> dict[str, Any]:
