@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 from pathlib import Path
 
@@ -56,6 +57,28 @@ def test_spl_and_tip_force_count_only_beyond_two_standard_errors() -> None:
     assert verdict.spl.mean == pytest.approx(np.mean([0.1 / t - 1 for t in (0.2, 0.21, 0.19, 0.2)]))
     assert verdict.tip_force_n.mean == pytest.approx(0.1)  # the NaN step is ignored
     assert not regression.ships([verdict])
+
+
+def test_a_student_keeps_nine_tenths_of_its_teachers_successes_and_no_more_tip_force_stops(
+) -> None:
+    from sim4endor.tasks import FAILURES
+
+    assert regression.TIP_FORCE_STOP in FAILURES
+    teacher = [_episode(True) for _ in range(10)]
+    nine = [_episode(True) for _ in range(9)]
+    missed = dataclasses.replace(_episode(False), failure="timeout")
+    pressed = dataclasses.replace(_episode(False), failure=regression.TIP_FORCE_STOP)
+    kept = _verdict([*nine, missed], teacher)
+    assert (kept.successes, kept.tip_force_stops) == (9, 0)
+    assert kept.short_of_teacher == () and regression.keeps([kept])
+    assert "successes" in kept.worse  # as a replacement it would not ship
+    stopped = _verdict([*nine, pressed], teacher)
+    assert stopped.short_of_teacher == ("tip_force_stops",)
+    eight = _verdict([*nine[:8], missed, missed], teacher)
+    assert eight.short_of_teacher == ("successes",) and not regression.keeps([eight])
+    table = regression.student_markdown({"reference": "teacher", "verdicts": {"s": [kept]},
+                                         "keeps": {"s": True}})
+    assert "| s | held_out_trees | 10 | 9 | 10 | 90 % | 0 (0) | – |" in table
 
 
 def test_episodes_must_pair_one_to_one() -> None:

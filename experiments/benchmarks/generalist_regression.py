@@ -10,8 +10,10 @@ on no group.
 Usage:
     python experiments/benchmarks/generalist_regression.py RUN [RUN ...] [--reference POLICY]
         [--trees 20] [--wide-trees 10] [--implicit-trees 6] [--real DIR ...] [--jobs 2]
-        [--motion] [--randomise] [--json PATH]
+        [--student] [--motion] [--randomise] [--json PATH]
 
+``--student`` judges each candidate as a student distilled from the reference (issue 77: at
+least 90 % of its teacher's successes and no more tip-force stops in every group).
 ``--motion`` also runs every group but the phantoms on a beating and breathing heart (each a
 group ``GROUP moving``); ``--randomise`` draws the domain randomisation in every case.
 """
@@ -43,6 +45,8 @@ def main() -> None:
                         help="a real patient's vessel folder (repeatable)")
     parser.add_argument("--steve", type=Path, help="the stEVE anatomy's folder")
     parser.add_argument("--trials", type=int, default=1, help="episodes per case")
+    parser.add_argument("--student", action="store_true",
+                        help="judge the candidates as students of the reference, their teacher")
     parser.add_argument("--motion", action="store_true",
                         help="also every case but the phantoms' on a moving heart")
     parser.add_argument("--randomise", action="store_true",
@@ -59,7 +63,7 @@ def main() -> None:
     result = regression.regression(args.candidates, args.reference, config, jobs=args.jobs,
                                    progress=True)
     minutes = (time.monotonic() - start) / 60
-    print(regression.markdown(result))
+    print(regression.student_markdown(result) if args.student else regression.markdown(result))
     print(f"{len(args.candidates)} candidates against {result['reference']} in {minutes:.1f} "
           f"min with {args.jobs} processes")
     if args.json:
@@ -69,6 +73,7 @@ def main() -> None:
                       "steve_dir": str(config.steve_dir)},
                   "minutes": minutes,
                   "reference": result["reference"], "ships": result["ships"],
+                  "keeps": result["keeps"],
                   "verdicts": {name: [dataclasses.asdict(v) | {"worse": list(v.worse)}
                                       for v in verdicts]
                                for name, verdicts in result["verdicts"].items()},

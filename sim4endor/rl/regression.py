@@ -13,6 +13,10 @@ verdict compares:
 
 With one episode in a group the standard error is 0, so any drop in SPL or rise in tip force
 counts. A candidate may replace the reference only when no group is worse (``ships``).
+
+A student distilled from the reference (issue 77) is judged by another rule (``keeps``): in
+every group it reaches at least :data:`STUDENT_SHARE` of its teacher's successes and ends no
+more episodes in a tip-force stop.
 Episodes run in ``jobs`` spawned processes, each task a few cases of one policy.
 """
 
@@ -35,6 +39,10 @@ from sim4endor.rl.runs import run_config
 
 #: A paired difference counts when it is this many standard errors from zero.
 STANDARD_ERRORS = 2.0
+#: The share of its teacher's successes a student keeps in every group.
+STUDENT_SHARE = 0.9
+#: How an episode ends that pressed the tip too hard (a reason of ``sim4endor.tasks.FAILURES``).
+TIP_FORCE_STOP = "tip_force"
 #: Cases a worker runs per task.
 CHUNK_CASES = 8
 
@@ -72,6 +80,8 @@ class GroupVerdict:
     reference_successes: int
     spl: Paired
     tip_force_n: Paired
+    tip_force_stops: int = 0
+    reference_tip_force_stops: int = 0
 
     @property
     def worse(self) -> tuple[str, ...]:
@@ -80,6 +90,14 @@ class GroupVerdict:
             ("successes", self.successes < self.reference_successes),
             ("spl", self.spl.below()),
             ("tip_force", self.tip_force_n.above())) if is_worse)
+
+    @property
+    def short_of_teacher(self) -> tuple[str, ...]:
+        """Where a student falls short of the reference as its teacher (empty: nowhere)."""
+        return tuple(name for name, short in (
+            ("successes", self.successes < STUDENT_SHARE * self.reference_successes),
+            ("tip_force_stops", self.tip_force_stops > self.reference_tip_force_stops))
+            if short)
 
 
 def compare(groups: Mapping[str, str], candidate: Mapping[str, Sequence[Episode]],
@@ -104,13 +122,20 @@ def compare(groups: Mapping[str, str], candidate: Mapping[str, Sequence[Episode]
             spl=Paired.of([episode_spl(c) for c, _ in pairs],
                           [episode_spl(r) for _, r in pairs]),
             tip_force_n=Paired.of([largest_tip_force(c) for c, _ in pairs],
-                                  [largest_tip_force(r) for _, r in pairs])))
+                                  [largest_tip_force(r) for _, r in pairs]),
+            tip_force_stops=sum(c.outcome == TIP_FORCE_STOP for c, _ in pairs),
+            reference_tip_force_stops=sum(r.outcome == TIP_FORCE_STOP for _, r in pairs)))
     return verdicts
 
 
 def ships(verdicts: Sequence[GroupVerdict]) -> bool:
     """Whether the candidate is worse on no group."""
     return not any(v.worse for v in verdicts)
+
+
+def keeps(verdicts: Sequence[GroupVerdict]) -> bool:
+    """Whether a student falls short of its teacher (the reference) in no group."""
+    return not any(v.short_of_teacher for v in verdicts)
 
 
 def regression(candidates: Sequence[Path], reference: Path,
@@ -121,6 +146,8 @@ def regression(candidates: Sequence[Path], reference: Path,
     Returns:
         ``verdicts``: candidate name → its :class:`GroupVerdict` list;
         ``ships``: candidate name → whether it is worse on no group;
+        ``keeps``: candidate name → whether, as a student of the reference, it falls short
+        in no group;
         ``rows``: policy name → group → :func:`~sim4endor.rl.metrics.summarize` metrics;
         ``outcomes``: policy name → case label → each episode's outcome.
     """
@@ -138,7 +165,8 @@ def regression(candidates: Sequence[Path], reference: Path,
     verdicts = {name: compare(groups, episodes[name], episodes[names[0]]) for name in names[1:]}
     rows = {name: generalisation.group_metrics(cases[name], episodes[name]) for name in names}
     return {"reference": names[0], "verdicts": verdicts,
-            "ships": {name: ships(v) for name, v in verdicts.items()}, "rows": rows,
+            "ships": {name: ships(v) for name, v in verdicts.items()},
+            "keeps": {name: keeps(v) for name, v in verdicts.items()}, "rows": rows,
             "outcomes": {name: {label: [e.outcome for e in runs] for label, runs in of.items()}
                          for name, of in episodes.items()}}
 
@@ -158,6 +186,27 @@ def markdown(result: Mapping[str, Any]) -> str:
                 f"| {', '.join(v.worse) or '–'} |")
     for name, ok in result["ships"].items():
         lines.append(f"\n{name}: {'worse on no group' if ok else 'WORSE on a group: do not ship'}")
+    return "\n".join(lines)
+
+
+def student_markdown(result: Mapping[str, Any]) -> str:
+    """One row per (student, group): its successes against :data:`STUDENT_SHARE` of its
+    teacher's (the reference), and both policies' tip-force stops."""
+    teacher = result["reference"]
+    lines = [f"| student | group | episodes | successes | {teacher} | share | tip-force stops "
+             f"({teacher}) | short on |", "|---|---|---|---|---|---|---|---|"]
+    for name, verdicts in result["verdicts"].items():
+        for v in verdicts:
+            share = (f"{100 * v.successes / v.reference_successes:.0f} %"
+                     if v.reference_successes else "–")
+            lines.append(
+                f"| {name} | {v.group} | {v.episodes} | {v.successes} | {v.reference_successes} "
+                f"| {share} | {v.tip_force_stops} ({v.reference_tip_force_stops}) "
+                f"| {', '.join(v.short_of_teacher) or '–'} |")
+    for name, ok in result["keeps"].items():
+        lines.append(f"\n{name}: " + (
+            f"keeps {STUDENT_SHARE:.0%} of {teacher}'s successes and no more tip-force stops "
+            "in every group" if ok else f"SHORT of {teacher} in a group"))
     return "\n".join(lines)
 
 
