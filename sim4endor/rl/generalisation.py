@@ -357,12 +357,10 @@ def evaluate_suite(run_dir: Path, config: SuiteConfig, *, with_baselines: bool =
     from sim4endor.rl.runs import run_config
 
     train_config = run_config(run_dir)
-    cases = policy_cases(train_config.env, config)
     run_suite = config.for_run(train_config.env)
     envs = CaseEnvironments()
     try:
-        episodes = run_cases(cases, run_actor(run_dir), run_suite, envs,
-                             label=policy_name(run_dir), progress=progress)
+        cases, episodes = _policy_episodes(run_dir, config, envs, progress)
         rows = {f"policy ({policy_name(run_dir)})": group_metrics(cases, episodes)}
         for other in beside:
             rows[f"policy ({policy_name(other)})"] = _beside_row(other, config, progress)
@@ -386,17 +384,22 @@ def _beside_row(run_dir: Path, config: SuiteConfig, progress: bool
                 ) -> dict[str, dict[str, Any]]:
     """Another run's metrics per group on the suite's cases, in environments of its own
     (its observation set may differ from the evaluated run's)."""
+    envs = CaseEnvironments()
+    try:
+        return group_metrics(*_policy_episodes(run_dir, config, envs, progress))
+    finally:
+        envs.close()
+
+
+def _policy_episodes(run_dir: Path, config: SuiteConfig, envs: CaseEnvironments,
+                     progress: bool) -> tuple[list[Case], dict[str, list[Episode]]]:
+    """A run's cases (:func:`policy_cases`) and its episodes on them, in ``envs``."""
     from sim4endor.rl.runs import run_config
 
     run_env = run_config(run_dir).env
     cases = policy_cases(run_env, config)
-    envs = CaseEnvironments()
-    try:
-        return group_metrics(cases, run_cases(cases, run_actor(run_dir), config.for_run(run_env),
-                                              envs, label=policy_name(run_dir),
-                                              progress=progress))
-    finally:
-        envs.close()
+    return cases, run_cases(cases, run_actor(run_dir), config.for_run(run_env), envs,
+                            label=policy_name(run_dir), progress=progress)
 
 
 def policy_name(path: Path) -> str:

@@ -17,6 +17,7 @@ counts. A candidate may replace the reference only when no group is worse (``shi
 A student distilled from the reference (issue 77) is judged by another rule (``keeps``): in
 every group it reaches at least :data:`STUDENT_SHARE` of its teacher's successes and ends no
 more episodes in a tip-force stop.
+
 Episodes run in ``jobs`` spawned processes, each task a few cases of one policy.
 """
 
@@ -80,8 +81,8 @@ class GroupVerdict:
     reference_successes: int
     spl: Paired
     tip_force_n: Paired
-    tip_force_stops: int = 0
-    reference_tip_force_stops: int = 0
+    tip_force_stops: int
+    reference_tip_force_stops: int
 
     @property
     def worse(self) -> tuple[str, ...]:
