@@ -23,7 +23,12 @@ import yaml
 from sim4endor._argtypes import MAX_SEED
 from sim4endor._checks import require
 from sim4endor.errors import Sim4EndoRError
-from sim4endor.observations import OBSERVATION_SETS, OBSERVATION_UNITS, PLANE_OBSERVATIONS
+from sim4endor.observations import (
+    BIPLANE_OBSERVATIONS,
+    OBSERVATION_SETS,
+    OBSERVATION_UNITS,
+    PLANE_OBSERVATIONS,
+)
 
 Algorithm = Literal["ddpg", "sac", "ppo"]
 ALGORITHMS: tuple[str, ...] = ("ddpg", "sac", "ppo")
@@ -235,6 +240,9 @@ class EnvConfig:
                  "randomise": self.randomise, "motion": self.motion,
                  "target_weights": None if evaluation else self.target_weights}
         kwargs.update({key: value for key, value in given.items() if value is not None})
+        if any(name in BIPLANE_OBSERVATIONS for name in self.observation_names()):
+            # A set that reads the second plane (``deployable_biplane``) is a biplane lab's.
+            kwargs["cathlab"] = {"biplane": True}
         return kwargs
 
 
