@@ -213,6 +213,17 @@ def test_the_second_plane_needs_a_biplane_lab() -> None:
                    {"observations": list(BIPLANE_OBSERVATIONS[:1])})
 
 
+def test_a_run_config_on_the_biplane_set_loads_a_biplane_lab() -> None:
+    """A run config names only its observation set; reading the second plane makes the lab
+    biplane, so `sim4endor train` and `evaluate` can run a biplane student."""
+    env_config = EnvConfig(domain="simplified_phantom", task="task_a",
+                           observations="deployable_biplane")
+    env = suite.load(env_config.domain, env_config.task, env_config.task_kwargs(0))
+    env.reset()
+    assert env.task.cathlab is not None and env.task.cathlab.planes == 2
+    assert "cathlab" not in EnvConfig(observations="deployable").task_kwargs(0)
+
+
 def test_the_deployable_set_has_network_scales() -> None:
     env = EnvConfig(domain="simplified_phantom", task="task_a", observations="deployable")
     sizes = sum(OBSERVATION_UNITS[name][1] or 0 for name in OBSERVATION_SETS["deployable"])
