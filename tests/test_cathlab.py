@@ -246,3 +246,20 @@ def test_a_phantom_lies_face_up_under_the_c_arm() -> None:
 def test_patient_axes_must_be_a_rotation(axes: Any) -> None:
     with pytest.raises(TaskConfigError, match="patient_axes"):
         CathLabConfig(patient_axes=axes)
+
+
+def test_a_run_config_sets_the_cath_lab_and_names_a_bad_field() -> None:
+    from sim4endor.rl.config import ConfigError, apply_overrides, default_config, from_dict, to_dict
+
+    config = apply_overrides(default_config("sac"), [
+        "env.observations=deployable", "env.cathlab={frame_rate: 15.0, views: [[0, 30]]}"])
+    assert config.env.task_kwargs(0)["cathlab"] == {"frame_rate": 15.0, "views": [[0, 30]]}
+    assert from_dict(to_dict(config)).env == config.env  # as config.yaml saves and reads it
+    env = suite.load("simplified_phantom", "task_a", config.env.task_kwargs(0))
+    assert env.task.config.cathlab.frame_rate == 15.0
+    for bad, message in (("{frame_rate: -1}", "frame_rate must be > 0"),
+                         ("{rate: 15}", r"unknown fields \['rate'\]")):
+        with pytest.raises(ConfigError, match=message):
+            apply_overrides(default_config("sac"), [f"env.cathlab={bad}"])
+    with pytest.raises(ConfigError, match="biplane"):
+        EnvConfig(observations="deployable_biplane", cathlab={"biplane": False})

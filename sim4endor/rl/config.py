@@ -129,6 +129,10 @@ class EnvConfig:
             per tree: :mod:`sim4endor.tasks.randomisation`; ``None``: off).
         motion: coronary trees and vessel folders: a beating and breathing heart moves the
             walls (:mod:`sim4endor.models.motion`; ``None``: a still heart).
+        cathlab: the cath lab's sensors of the ``deployable`` entries, as fields of
+            :class:`sim4endor.tasks.CathLabConfig` (e.g. ``{frame_rate: 15.0}``; ``None``: its
+            defaults). A set that reads the second plane (``deployable_biplane``) makes the
+            lab biplane.
         target_weights: domain ``coronary``, training only: relative weights of drawing each
             target label, e.g. ``{AM: 3, RV: 3}`` (others 1), a curriculum that trains more on
             the branches a policy misses; evaluations keep drawing targets uniformly, so
@@ -153,6 +157,7 @@ class EnvConfig:
     vary_wire: bool | None = None
     randomise: bool | None = None
     motion: bool | None = None
+    cathlab: dict[str, Any] | None = None
     target_weights: dict[str, float] | None = None
 
     def __post_init__(self) -> None:
@@ -187,6 +192,22 @@ class EnvConfig:
         if self.target_weights is not None and self.domain != "coronary":
             raise ConfigError(f"env.target_weights weigh the coronary domain's targets; "
                               f"domain {self.domain!r} draws none.")
+        if self.cathlab is not None:
+            # Imported here, as the wire catalogue is: the task's settings load MuJoCo.
+            from sim4endor.tasks import CathLabConfig, TaskConfigError
+
+            known = [field.name for field in dataclasses.fields(CathLabConfig)]
+            unknown = sorted(set(self.cathlab) - set(known))
+            if unknown:
+                raise ConfigError(f"env.cathlab: unknown fields {unknown}; CathLabConfig has "
+                                  f"{known}.")
+            try:
+                CathLabConfig(**self.cathlab)
+            except TaskConfigError as exc:
+                raise ConfigError(f"env.cathlab: {exc}") from None
+            if self.cathlab.get("biplane") is False and self._biplane():
+                raise ConfigError(f"env.observations {self.observations!r} read a biplane "
+                                  "lab's second plane; drop env.cathlab.biplane=false.")
         if self.eval_pool_seed is not None and self.pool_size is None:
             raise ConfigError("env.eval_pool_seed needs env.pool_size (the training trees' "
                               "count), so the two splits can be told apart.")
@@ -240,10 +261,14 @@ class EnvConfig:
                  "randomise": self.randomise, "motion": self.motion,
                  "target_weights": None if evaluation else self.target_weights}
         kwargs.update({key: value for key, value in given.items() if value is not None})
-        if any(name in BIPLANE_OBSERVATIONS for name in self.observation_names()):
-            # A set that reads the second plane (``deployable_biplane``) is a biplane lab's.
-            kwargs["cathlab"] = {"biplane": True}
+        if self.cathlab is not None or self._biplane():
+            kwargs["cathlab"] = {**(self.cathlab or {}), **({"biplane": True}
+                                                            if self._biplane() else {})}
         return kwargs
+
+    def _biplane(self) -> bool:
+        """Whether the observations read the second plane, which only a biplane lab has."""
+        return any(name in BIPLANE_OBSERVATIONS for name in self.observation_names())
 
 
 @dataclasses.dataclass(frozen=True)
@@ -595,6 +620,8 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
             raise ConfigError(f"{where} must be a list, got {value!r}.")
         item = typing.get_args(hint)[0]
         return tuple(_coerce(v, item, f"{where}[{i}]") for i, v in enumerate(value))
+    if hint is Any:  # a mapping of another module's fields (env.cathlab), checked there
+        return value
     if hint is bool and isinstance(value, bool):
         return value
     if hint in (int, float) and isinstance(value, str):
