@@ -19,7 +19,7 @@ Rows (``CathLabConfig`` fields set on top of the student's own ``env.cathlab``):
 
 Usage:
     python experiments/benchmarks/cathlab_sensors.py STUDENT [--teacher generalist] \
-        [--trees 4] [--first-seed 1000] [--jobs 2] [--json OUT.json]
+        [--trees 4] [--first-seed 1000] [--settings NAME ...] [--jobs 2] [--json OUT.json]
 
 Prints one markdown row per setting: successes, the share of the teacher's, and how the
 other episodes ended; the minutes it took. ``STUDENT`` is a run folder or a shipped name.
@@ -88,13 +88,15 @@ def main() -> None:
     parser.add_argument("--teacher", default="generalist", help="its teacher")
     parser.add_argument("--trees", type=int, default=4, help="held-out trees")
     parser.add_argument("--first-seed", type=int, default=1000, help="seed of the first tree")
+    parser.add_argument("--settings", nargs="+", choices=list(SETTINGS), default=list(SETTINGS),
+                        metavar="NAME", help=f"the rows to run (default all: {list(SETTINGS)})")
     parser.add_argument("--jobs", type=int, default=2, help="processes")
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
     args = parser.parse_args()
 
     started = time.perf_counter()
     tasks = {TEACHER_ROW: (args.teacher, None),
-             **{name: (args.student, sensors) for name, sensors in SETTINGS.items()}}
+             **{name: (args.student, SETTINGS[name]) for name in args.settings}}
     context = multiprocessing.get_context("spawn")  # CoACD's OpenMP in builds: never fork
     with concurrent.futures.ProcessPoolExecutor(args.jobs, mp_context=context) as pool:
         futures = {name: pool.submit(_row, run, sensors, args.trees, args.first_seed)
