@@ -263,3 +263,20 @@ def test_a_run_config_sets_the_cath_lab_and_names_a_bad_field() -> None:
             apply_overrides(default_config("sac"), [f"env.cathlab={bad}"])
     with pytest.raises(ConfigError, match="biplane"):
         EnvConfig(observations="deployable_biplane", cathlab={"biplane": False})
+
+
+def test_the_sensor_benchmark_rows_take_out_only_what_they_name() -> None:
+    """experiments/benchmarks/cathlab_sensors.py: every row is a valid cath lab over the
+    defaults, and ``exact`` leaves no noise, lost frame, registration error or latency."""
+    import dataclasses
+
+    from script_helpers import load_script
+
+    settings = load_script("experiments/benchmarks/cathlab_sensors.py").SETTINGS
+    assert settings["own sensors"] == {}
+    for changes in settings.values():
+        EnvConfig(observations="deployable", cathlab=changes)
+    exact = dataclasses.replace(CathLabConfig(), **settings["exact"])
+    assert (exact.tracking_noise, exact.dropout, exact.roadmap_error, exact.load_cell_noise,
+            exact.latency) == (0.0, 0.0, 0.0, 0.0, 0.0)
+    assert exact.frame_rate == 20.0  # a pulse every control step (20 Hz)

@@ -38,6 +38,7 @@ from typing import Any
 
 from sim4endor.assets import run_or_policy
 from sim4endor.rl.config import EnvConfig
+from sim4endor.rl.evaluation import DEFAULT_CONTROL_TIMESTEP_S
 from sim4endor.rl.generalisation import (
     CaseEnvironments,
     SuiteConfig,
@@ -50,7 +51,8 @@ from sim4endor.rl.runs import run_config
 
 _NOISE_OFF = {"tracking_noise": 0.0, "dropout": 0.0, "roadmap_error": 0.0,
               "load_cell_noise": 0.0}
-_FRESH = {"frame_rate": 20.0, "latency": 0.0}
+#: A pulse every control step, its track shown at once.
+_FRESH = {"frame_rate": 1.0 / DEFAULT_CONTROL_TIMESTEP_S, "latency": 0.0}
 #: Each row's sensor changes on top of the student's own.
 SETTINGS: dict[str, dict[str, float]] = {
     "own sensors": {},
