@@ -280,3 +280,16 @@ def test_the_sensor_benchmark_rows_take_out_only_what_they_name() -> None:
     assert (exact.tracking_noise, exact.dropout, exact.roadmap_error, exact.load_cell_noise,
             exact.latency) == (0.0, 0.0, 0.0, 0.0, 0.0)
     assert exact.frame_rate == 20.0  # a pulse every control step (20 Hz)
+
+
+def test_the_suite_meets_a_run_with_the_sensors_it_trained_on() -> None:
+    from sim4endor.rl.generalisation import SuiteConfig, policy_cases
+
+    run_env = EnvConfig(observations="deployable", cathlab={"frame_rate": 15.0})
+    phantoms = SuiteConfig(trees=0, wide_trees=0, implicit_trees=0, steve_dir=None)
+    assert {case.env.task_kwargs(0)["cathlab"]["frame_rate"]
+            for case in policy_cases(run_env, phantoms)} == {15.0}
+    exact = SuiteConfig(trees=0, wide_trees=0, implicit_trees=0, steve_dir=None,
+                        cathlab={"latency": 0.0})
+    assert {tuple(case.env.task_kwargs(0)["cathlab"].items())
+            for case in policy_cases(run_env, exact)} == {(("latency", 0.0),)}

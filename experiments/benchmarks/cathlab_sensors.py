@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures
-import dataclasses
 import json
 import multiprocessing
 import time
@@ -37,7 +36,6 @@ from pathlib import Path
 from typing import Any
 
 from sim4endor.assets import run_or_policy
-from sim4endor.rl.config import EnvConfig
 from sim4endor.rl.evaluation import DEFAULT_CONTROL_TIMESTEP_S
 from sim4endor.rl.generalisation import (
     CaseEnvironments,
@@ -71,11 +69,9 @@ def _row(run: str, sensors: dict[str, float] | None, trees: int, first_seed: int
     cath lab (``None``: the run's observations read no cath lab, e.g. the teacher)."""
     folder = run_or_policy(run)
     run_env = run_config(folder).env
-    suite = SuiteConfig(trees=trees, first_seed=first_seed).for_run(run_env)
-    base: EnvConfig = suite.base_env(run_env.observations)
-    if sensors is not None:
-        base = dataclasses.replace(base, cathlab={**(run_env.cathlab or {}), **sensors})
-    cases = tree_cases(first_seed, trees, base)
+    cathlab = None if sensors is None else {**(run_env.cathlab or {}), **sensors}
+    suite = SuiteConfig(trees=trees, first_seed=first_seed, cathlab=cathlab).for_run(run_env)
+    cases = tree_cases(first_seed, trees, suite.base_env(run_env.observations))
     envs = CaseEnvironments()
     try:
         episodes = run_cases(cases, run_actor(folder), suite, envs)

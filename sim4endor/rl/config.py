@@ -261,9 +261,11 @@ class EnvConfig:
                  "randomise": self.randomise, "motion": self.motion,
                  "target_weights": None if evaluation else self.target_weights}
         kwargs.update({key: value for key, value in given.items() if value is not None})
-        if self.cathlab is not None or self._biplane():
-            kwargs["cathlab"] = {**(self.cathlab or {}), **({"biplane": True}
-                                                            if self._biplane() else {})}
+        cathlab = dict(self.cathlab or {})
+        if self._biplane():
+            cathlab["biplane"] = True
+        if cathlab:
+            kwargs["cathlab"] = cathlab
         return kwargs
 
     def _biplane(self) -> bool:

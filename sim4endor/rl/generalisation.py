@@ -98,6 +98,9 @@ class SuiteConfig:
         real: Vessel folders of the ``real`` group (``sim4endor vessel build`` output).
         motion: Also run every case but the phantoms' on a beating and breathing heart.
         randomise: Every case with domain randomisation (``EnvConfig.randomise``).
+        cathlab: The cath lab's sensors of every case (``EnvConfig.cathlab``). ``None``: those
+            the evaluated run was trained with (:meth:`for_run`), so a student meets its own
+            sensors.
     """
 
     trees: int = 20
@@ -114,16 +117,20 @@ class SuiteConfig:
     real: tuple[Path, ...] = ()
     motion: bool = False
     randomise: bool = False
+    cathlab: dict[str, Any] | None = None
 
     def for_run(self, run_env: EnvConfig) -> SuiteConfig:
-        """This config with the run's tip shape where it names none."""
-        return self if self.tip is not None else dataclasses.replace(self, tip=run_env.tip)
+        """This config with the run's tip shape and cath lab where it names none."""
+        return dataclasses.replace(
+            self, tip=run_env.tip if self.tip is None else self.tip,
+            cathlab=run_env.cathlab if self.cathlab is None else self.cathlab)
 
     def base_env(self, observations: str) -> EnvConfig:
         """The environment every case derives from: ``observations``, the suite's wire and
         its randomisation (a policy trained with randomisation meets it only when asked)."""
         return EnvConfig(observations=observations, wire=self.wire, tip=self.tip,
-                         fidelity=self.fidelity, randomise=self.randomise or None)
+                         fidelity=self.fidelity, randomise=self.randomise or None,
+                         cathlab=self.cathlab)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -200,7 +207,8 @@ def ordered_groups(groups: Iterable[str]) -> list[str]:
 
 def policy_cases(run_env: EnvConfig, config: SuiteConfig) -> list[Case]:
     """The suite's cases for a run's policy (its ``config.yaml``'s ``env``): its observation
-    set, and its tip shape where ``config`` names none (:meth:`SuiteConfig.for_run`)."""
+    set, and its tip shape and cath lab where ``config`` names none
+    (:meth:`SuiteConfig.for_run`)."""
     return suite_cases(config.for_run(run_env), run_env.observations)
 
 
